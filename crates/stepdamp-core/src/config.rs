@@ -1,0 +1,315 @@
+//! Controller parameters (what a user sets) and the validated [`Config`] built from them
+//! once at start-up (what the 20 kHz step reads).
+
+use crate::detent::{Harmonic, HarmonicSeries};
+use crate::encoder::Encoder;
+use crate::modulator::Topology;
+use crate::pi::Pi;
+
+/// What the controller knows of the motor (SI units).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MotorModel<'a> {
+    /// Torque constant `Km` in N·m/A (> 0).
+    pub km_nm_per_a: f32,
+    /// Rotor teeth / pole pairs `Nr` (1..=1024; 50 for a 1.8° motor).
+    pub pole_pairs: u16,
+    /// Phase resistance `R` in Ω (> 0).
+    pub resistance_ohm: f32,
+    /// Phase inductance `L` in H (> 0).
+    pub inductance_h: f32,
+    /// Coulomb friction `Fs` in N·m (≥ 0), fed forward in servo mode.
+    pub coulomb_friction_nm: f32,
+    /// Detent harmonics, torque on the rotor `−Σ A sin(k Nr θ + φ)`.
+    pub detent: &'a [Harmonic],
+}
+
+/// Power stage and current loop settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DriveSettings {
+    /// DC bus voltage in V (> 0).
+    pub bus_voltage_v: f32,
+    /// Control and PWM frequency in Hz (> 0; 20 kHz typical).
+    pub pwm_hz: f32,
+    /// Open-loop d-axis holding current `I_hold` in A (≥ 0, ≤ current limit).
+    pub holding_current_a: f32,
+    /// Limit of the current vector magnitude in A (> 0).
+    pub current_limit_a: f32,
+    /// Closed current-loop bandwidth in Hz (> 0, below a quarter of `pwm_hz`).
+    pub current_loop_bandwidth_hz: f32,
+    /// Power stage.
+    pub topology: Topology,
+}
+
+/// Servo-mode gains (patent eq. 15), in torque units: the law divides by `Km`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ServoGains {
+    /// `Kp_vel` in N·m·s/rad (≥ 0).
+    pub velocity_nm_s_per_rad: f32,
+    /// `Kp_pos` in N·m/rad (≥ 0).
+    pub position_nm_per_rad: f32,
+    /// `Ki_pos` in N·m/(rad·s) (≥ 0).
+    pub position_integral_nm_per_rad_s: f32,
+    /// Corner of the encoder velocity low-pass filter in Hz (> 0).
+    pub velocity_filter_hz: f32,
+}
+
+impl ServoGains {
+    /// Gains that place the position loop of a rigid inertia `inertia_kg_m2` at natural
+    /// frequency `bandwidth_hz` with damping 0.7, an integral corner a tenth of that, and
+    /// the velocity filter at `velocity_filter_hz`.
+    pub fn for_bandwidth(inertia_kg_m2: f32, bandwidth_hz: f32, velocity_filter_hz: f32) -> Self {
+        let w = core::f32::consts::TAU * bandwidth_hz;
+        ServoGains {
+            velocity_nm_s_per_rad: 2.0 * 0.7 * inertia_kg_m2 * w,
+            position_nm_per_rad: inertia_kg_m2 * w * w,
+            position_integral_nm_per_rad_s: inertia_kg_m2 * w * w * w / 10.0,
+            velocity_filter_hz,
+        }
+    }
+}
+
+/// Control mode.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Mode {
+    /// Microstepping without an encoder: Park at `θ_cmd`, `i_d = I_hold` (eqs. 7–8).
+    #[default]
+    OpenLoop,
+    /// Position servo on the encoder: Park at `θ_fb`, `i_d = 0` (eqs. 14–15).
+    Servo,
+}
+
+/// Everything the controller is configured with.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Params<'a> {
+    /// Motor model.
+    pub motor: MotorModel<'a>,
+    /// Drive settings.
+    pub drive: DriveSettings,
+    /// Encoder counts per mechanical revolution (1..=2²⁰; used in servo mode).
+    pub encoder_counts_per_rev: u32,
+    /// Servo gains (used in servo mode).
+    pub servo: ServoGains,
+    /// Control mode.
+    pub mode: Mode,
+    /// Inject the detent compensation (and, in servo mode, the friction feed-forward).
+    pub compensation: bool,
+}
+
+/// Why parameters were rejected.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ConfigError {
+    /// A value is out of its range.
+    Invalid {
+        /// The parameter, e.g. `"motor.km_nm_per_a"`.
+        field: &'static str,
+        /// The value given.
+        value: f32,
+        /// What it must be.
+        reason: &'static str,
+    },
+    /// A harmonic order outside `1..=MAX_HARMONIC_ORDER`.
+    HarmonicOrder {
+        /// The order given.
+        order: u16,
+    },
+    /// The same harmonic order given twice.
+    DuplicateHarmonic {
+        /// The order given twice.
+        order: u16,
+    },
+}
+
+impl core::fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            ConfigError::Invalid {
+                field,
+                value,
+                reason,
+            } => write!(f, "{field} = {value}: {reason}"),
+            ConfigError::HarmonicOrder { order } => write!(
+                f,
+                "detent harmonic order {order}: must be in 1..={}",
+                crate::detent::MAX_HARMONIC_ORDER
+            ),
+            ConfigError::DuplicateHarmonic { order } => {
+                write!(f, "detent harmonic order {order} is given more than once")
+            }
+        }
+    }
+}
+
+impl core::error::Error for ConfigError {}
+
+/// Validated, precomputed configuration read by [`crate::step`]. Build once, never mutate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Config {
+    pub(crate) mode: Mode,
+    pub(crate) topology: Topology,
+    pub(crate) pole_pairs: u16,
+    pub(crate) bus_voltage_v: f32,
+    pub(crate) holding_current_a: f32,
+    pub(crate) current_limit_a: f32,
+    /// Largest |i_q| command in open loop: `sqrt(limit² − I_hold²)`.
+    pub(crate) open_loop_iq_limit_a: f32,
+    pub(crate) pi: Pi,
+    /// Integrator bound: the voltage the bus can make in any direction.
+    pub(crate) integral_bound_v: f32,
+    /// Position units per period per rad/s.
+    pub(crate) units_per_rad_s: f64,
+    /// Mechanical rad per position unit.
+    pub(crate) rad_per_unit: f32,
+    pub(crate) period_s: f32,
+    pub(crate) encoder: Encoder,
+    /// Detent compensation current in A (zero series when compensation is off).
+    pub(crate) compensation: HarmonicSeries,
+    /// Servo gains divided by Km (A per rad/s, A per rad, A per rad·s).
+    pub(crate) kpv_a: f32,
+    pub(crate) kpp_a: f32,
+    pub(crate) kip_a: f32,
+    /// Friction feed-forward current `Fs/Km` in A (zero when compensation is off).
+    pub(crate) friction_a: f32,
+    /// Largest measured current accepted, in A (beyond it a sample is a fault).
+    pub(crate) current_sample_limit_a: f32,
+}
+
+fn positive(field: &'static str, v: f32) -> Result<f32, ConfigError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(ConfigError::Invalid {
+            field,
+            value: v,
+            reason: "must be finite and > 0",
+        })
+    }
+}
+
+fn non_negative(field: &'static str, v: f32) -> Result<f32, ConfigError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(ConfigError::Invalid {
+            field,
+            value: v,
+            reason: "must be finite and ≥ 0",
+        })
+    }
+}
+
+impl Config {
+    /// Validates `p` and precomputes everything the step needs.
+    pub fn new(p: &Params<'_>) -> Result<Config, ConfigError> {
+        let m = &p.motor;
+        let d = &p.drive;
+        let km = positive("motor.km_nm_per_a", m.km_nm_per_a)?;
+        if m.pole_pairs == 0 || m.pole_pairs > 1024 {
+            return Err(ConfigError::Invalid {
+                field: "motor.pole_pairs",
+                value: f32::from(m.pole_pairs),
+                reason: "must be in 1..=1024",
+            });
+        }
+        let r = positive("motor.resistance_ohm", m.resistance_ohm)?;
+        let l = positive("motor.inductance_h", m.inductance_h)?;
+        let fs = non_negative("motor.coulomb_friction_nm", m.coulomb_friction_nm)?;
+        let vdc = positive("drive.bus_voltage_v", d.bus_voltage_v)?;
+        let pwm = positive("drive.pwm_hz", d.pwm_hz)?;
+        let limit = positive("drive.current_limit_a", d.current_limit_a)?;
+        let hold = non_negative("drive.holding_current_a", d.holding_current_a)?;
+        if hold > limit {
+            return Err(ConfigError::Invalid {
+                field: "drive.holding_current_a",
+                value: hold,
+                reason: "must not exceed drive.current_limit_a",
+            });
+        }
+        let bw = positive(
+            "drive.current_loop_bandwidth_hz",
+            d.current_loop_bandwidth_hz,
+        )?;
+        if bw > pwm / 4.0 {
+            return Err(ConfigError::Invalid {
+                field: "drive.current_loop_bandwidth_hz",
+                value: bw,
+                reason: "must be below a quarter of drive.pwm_hz",
+            });
+        }
+        let cpr = p.encoder_counts_per_rev;
+        if cpr == 0 || cpr > 1 << 20 {
+            return Err(ConfigError::Invalid {
+                field: "encoder.counts_per_rev",
+                value: cpr as f32,
+                reason: "must be in 1..=1048576",
+            });
+        }
+        let s = &p.servo;
+        let kpv = non_negative("servo.velocity_nm_s_per_rad", s.velocity_nm_s_per_rad)?;
+        let kpp = non_negative("servo.position_nm_per_rad", s.position_nm_per_rad)?;
+        let kip = non_negative(
+            "servo.position_integral_nm_per_rad_s",
+            s.position_integral_nm_per_rad_s,
+        )?;
+        let vf = positive("servo.velocity_filter_hz", s.velocity_filter_hz)?;
+        let ts = 1.0 / pwm;
+        let series = HarmonicSeries::new(m.detent, 1.0 / km)?;
+        let on = p.compensation;
+        Ok(Config {
+            mode: p.mode,
+            topology: d.topology,
+            pole_pairs: m.pole_pairs,
+            bus_voltage_v: vdc,
+            holding_current_a: hold,
+            current_limit_a: limit,
+            open_loop_iq_limit_a: libm::sqrtf(limit * limit - hold * hold),
+            pi: Pi::for_winding(r, l, bw, ts),
+            integral_bound_v: vdc * d.topology.inscribed_radius_per_vdc(),
+            units_per_rad_s: crate::angle::units_per_rad_s(m.pole_pairs, f64::from(ts)),
+            rad_per_unit: (core::f64::consts::TAU
+                / crate::angle::UNITS_PER_ELECTRICAL_REV
+                / f64::from(m.pole_pairs)) as f32,
+            period_s: ts,
+            encoder: Encoder::new(cpr, m.pole_pairs, ts, vf),
+            compensation: if on {
+                series
+            } else {
+                HarmonicSeries::default()
+            },
+            kpv_a: kpv / km,
+            kpp_a: kpp / km,
+            kip_a: kip / km,
+            friction_a: if on { fs / km } else { 0.0 },
+            current_sample_limit_a: 100.0 * limit,
+        })
+    }
+
+    /// Control period `Ts` in s.
+    pub fn period_s(&self) -> f32 {
+        self.period_s
+    }
+
+    /// Control mode.
+    pub fn mode(&self) -> Mode {
+        self.mode
+    }
+
+    /// Power stage topology.
+    pub fn topology(&self) -> Topology {
+        self.topology
+    }
+
+    /// Rotor pole pairs `Nr`.
+    pub fn pole_pairs(&self) -> u16 {
+        self.pole_pairs
+    }
+
+    /// Nominal bus voltage in V.
+    pub fn bus_voltage_v(&self) -> f32 {
+        self.bus_voltage_v
+    }
+
+    /// The current-loop PI gains.
+    pub fn current_pi(&self) -> Pi {
+        self.pi
+    }
+}

@@ -1,0 +1,203 @@
+//! One control period of the drive: sample → Park → law → PI → inverse Park → modulator.
+
+use crate::angle::{MicrostepAccumulator, Position};
+use crate::config::{Config, Mode};
+use crate::encoder::EncoderState;
+use crate::modulator::LegDuties;
+use crate::park::{Ab, Dq, inverse_park, park};
+
+/// What the drive samples at the start of a period.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Measurement {
+    /// Phase A current in A.
+    pub i_a_a: f32,
+    /// Phase B current in A.
+    pub i_b_a: f32,
+    /// Raw free-running encoder counter (wrapping; 0 at power-on with the rotor at θ = 0).
+    /// Ignored in open loop.
+    pub encoder_count: u32,
+}
+
+/// Mutable controller state. Start from `State::default()` (rotor and command at 0).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct State {
+    command: MicrostepAccumulator,
+    speed_cmd_rad_s: f32,
+    encoder: EncoderState,
+    integral_d_v: f32,
+    integral_q_v: f32,
+    position_integral_rad_s: f32,
+    last_current: Ab,
+    /// Periods whose current sample was rejected (non-finite or beyond 100× the current
+    /// limit); the previous good sample was used instead.
+    pub sample_faults: u32,
+}
+
+/// Internal signals of one period (what a run log records).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Signals {
+    /// Commanded position `θ_cmd` used this period.
+    pub theta_cmd: Position,
+    /// Encoder position `θ_fb` (servo mode; stays 0 in open loop).
+    pub theta_fb: Position,
+    /// Filtered encoder velocity in rad/s (servo mode).
+    pub omega_fb_rad_s: f32,
+    /// Measured currents in the controller's frame, A.
+    pub i_dq: Dq,
+    /// Current commands, A.
+    pub i_dq_cmd: Dq,
+    /// Applied winding voltages after limiting, V.
+    pub v_ab: Ab,
+    /// Voltage scale applied by the modulator (1 = not limited).
+    pub voltage_scale: f32,
+}
+
+/// Output of one period.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Output {
+    /// Leg duties to load into the PWM timer, each in `[0, 1]`.
+    pub duties: LegDuties,
+    /// Internal signals.
+    pub signals: Signals,
+}
+
+impl State {
+    /// Sets the commanded speed in rad/s (mechanical). A non-finite speed is ignored.
+    pub fn command_speed(&mut self, cfg: &Config, speed_rad_s: f32) {
+        if speed_rad_s.is_finite() {
+            self.speed_cmd_rad_s = speed_rad_s;
+            self.command.set_speed(speed_rad_s, cfg.units_per_rad_s);
+        }
+    }
+
+    /// The commanded speed in rad/s.
+    pub fn speed_command_rad_s(&self) -> f32 {
+        self.speed_cmd_rad_s
+    }
+
+    /// The commanded position `θ_cmd` of the next period.
+    pub fn position_command(&self) -> Position {
+        self.command.position
+    }
+}
+
+/// Runs one control period. Never panics; the duties are always in `[0, 1]`.
+///
+/// Faults: a non-finite or absurd (beyond 100× the current limit) current sample is
+/// replaced by the last good one and counted in [`State::sample_faults`]; the integrators
+/// stay bounded and finite, so control resumes normally on the next good sample.
+#[inline]
+pub fn step(cfg: &Config, st: &mut State, m: &Measurement) -> Output {
+    let lim = cfg.current_sample_limit_a;
+    let i_ab = if m.i_a_a.is_finite()
+        && m.i_b_a.is_finite()
+        && m.i_a_a.abs() <= lim
+        && m.i_b_a.abs() <= lim
+    {
+        let x = Ab {
+            a: m.i_a_a,
+            b: m.i_b_a,
+        };
+        st.last_current = x;
+        x
+    } else {
+        st.sample_faults = st.sample_faults.saturating_add(1);
+        st.last_current
+    };
+    let theta_cmd = st.command.position;
+
+    let (theta_ctl, theta_fb) = match cfg.mode {
+        Mode::OpenLoop => (theta_cmd, Position::default()),
+        Mode::Servo => {
+            let fb = cfg.encoder.update(&mut st.encoder, m.encoder_count);
+            (fb, fb)
+        }
+    };
+    let (sin, cos) = libm::sincosf(theta_ctl.electrical_angle_rad());
+    let i_dq = park(i_ab, sin, cos);
+    let comp_a = cfg.compensation.eval_sin_cos(sin, cos);
+
+    let i_dq_cmd = match cfg.mode {
+        Mode::OpenLoop => {
+            let q = cfg.open_loop_iq_limit_a;
+            Dq {
+                d: cfg.holding_current_a,
+                q: comp_a.max(-q).min(q),
+            }
+        }
+        Mode::Servo => servo_law(cfg, st, theta_cmd, theta_fb, comp_a),
+    };
+
+    // Current loop: PI on d and q, inverse Park, limit the vector on the bus, anti-windup.
+    let e = Dq {
+        d: i_dq_cmd.d - i_dq.d,
+        q: i_dq_cmd.q - i_dq.q,
+    };
+    let v_unlim = Dq {
+        d: cfg.pi.output(st.integral_d_v, e.d),
+        q: cfg.pi.output(st.integral_q_v, e.q),
+    };
+    let v_ab_req = inverse_park(v_unlim, sin, cos);
+    let modulated = cfg.topology.modulate(v_ab_req, cfg.bus_voltage_v);
+    let limited = modulated.scale < 1.0;
+    let bound = cfg.integral_bound_v;
+    cfg.pi
+        .commit(&mut st.integral_d_v, e.d, v_unlim.d, limited, bound);
+    cfg.pi
+        .commit(&mut st.integral_q_v, e.q, v_unlim.q, limited, bound);
+    let v_ab = Ab {
+        a: v_ab_req.a * modulated.scale,
+        b: v_ab_req.b * modulated.scale,
+    };
+
+    st.command.advance();
+    Output {
+        duties: modulated.duties,
+        signals: Signals {
+            theta_cmd,
+            theta_fb,
+            omega_fb_rad_s: st.encoder.velocity_rad_s,
+            i_dq,
+            i_dq_cmd,
+            v_ab,
+            voltage_scale: modulated.scale,
+        },
+    }
+}
+
+/// Patent eq. 15: `i_q = (1/Km)[Kpv ω_err + Kpp θ_err + Kip ∫θ_err + Σ A sin(kθe_fb+φ) + Fs sgn(ω_cmd)]`,
+/// clamped to the current limit; the position integral stops while the clamp pushes the
+/// same way (anti-windup).
+#[inline]
+fn servo_law(
+    cfg: &Config,
+    st: &mut State,
+    theta_cmd: Position,
+    theta_fb: Position,
+    comp_a: f32,
+) -> Dq {
+    let theta_err = theta_cmd.wrapping_diff(theta_fb) as f32 * cfg.rad_per_unit;
+    let omega_err = st.speed_cmd_rad_s - st.encoder.velocity_rad_s;
+    let friction = if st.speed_cmd_rad_s > 0.0 {
+        cfg.friction_a
+    } else if st.speed_cmd_rad_s < 0.0 {
+        -cfg.friction_a
+    } else {
+        0.0
+    };
+    let integral_next = st.position_integral_rad_s + theta_err * cfg.period_s;
+    let iq = cfg.kpv_a * omega_err
+        + cfg.kpp_a * theta_err
+        + cfg.kip_a * integral_next
+        + comp_a
+        + friction;
+    let lim = cfg.current_limit_a;
+    let clamped = iq.max(-lim).min(lim);
+    if clamped == iq || theta_err * iq < 0.0 {
+        st.position_integral_rad_s = integral_next;
+    }
+    if !st.position_integral_rad_s.is_finite() {
+        st.position_integral_rad_s = 0.0;
+    }
+    Dq { d: 0.0, q: clamped }
+}

@@ -1,0 +1,73 @@
+//! # stepdamp-core
+//!
+//! The real-time controller of model-based active damping for hybrid stepper motors
+//! (US 7,733,051, figs. 2–3): `no_std`, no allocation, no panics, `f32`, one call per
+//! PWM period. The simulator in `stepdamp-sim` runs exactly this code.
+//!
+//! Per period ([`step`]): sample the phase currents (and the encoder in servo mode);
+//! Park them at the controller's angle (`Nr·θ_cmd` in open loop, `Nr·θ_fb` in servo);
+//! the outer law gives `i_d`, `i_q` commands (open loop: `I_hold` and the detent
+//! compensation `(1/Km) Σ A_k sin(k θe + φ_k)`; servo: patent eq. 15); PI current loops
+//! with anti-windup give `v_d`, `v_q`; inverse Park; the modulator limits the voltage vector
+//! to the bus and returns leg duties in `[0, 1]`.
+//!
+//! Configuration ([`Config`], validated and precomputed once from [`Params`]) is kept
+//! apart from state ([`State`], mutated every period).
+//!
+//! Sign conventions (design.md §2): `θe = Nr·θ`; `i_d = i_a cos θe + i_b sin θe`,
+//! `i_q = −i_a sin θe + i_b cos θe`; motor torque `Km(−i_a sin θe + i_b cos θe)`, i.e.
+//! `Km·i_q` when the frame is the rotor's; detent torque on the rotor
+//! `−Σ A_k sin(k θe + φ_k)`.
+//!
+//! ```
+//! use stepdamp_core::*;
+//!
+//! let detent = [
+//!     Harmonic { order: 4, amplitude_nm: 0.02, phase_rad: 0.0 },
+//!     Harmonic { order: 2, amplitude_nm: 0.012, phase_rad: 0.7 },
+//!     Harmonic { order: 1, amplitude_nm: 0.008, phase_rad: -1.1 },
+//! ];
+//! let params = Params {
+//!     motor: MotorModel {
+//!         km_nm_per_a: 0.3, pole_pairs: 50, resistance_ohm: 0.9, inductance_h: 2.5e-3,
+//!         coulomb_friction_nm: 0.01, detent: &detent,
+//!     },
+//!     drive: DriveSettings {
+//!         bus_voltage_v: 48.0, pwm_hz: 20_000.0, holding_current_a: 1.9,
+//!         current_limit_a: 3.0, current_loop_bandwidth_hz: 1500.0,
+//!         topology: Topology::ThreeLeg,
+//!     },
+//!     encoder_counts_per_rev: 4000,
+//!     servo: ServoGains::for_bandwidth(4.0e-5, 50.0, 300.0),
+//!     mode: Mode::OpenLoop,
+//!     compensation: true,
+//! };
+//! let cfg = Config::new(&params)?;
+//! let mut st = State::default();
+//! st.command_speed(&cfg, 8.4); // rad/s
+//! let out = step(&cfg, &mut st, &Measurement { i_a_a: 0.0, i_b_a: 0.0, encoder_count: 0 });
+//! assert!(out.duties.0.iter().all(|d| (0.0..=1.0).contains(d)));
+//! assert_eq!(out.signals.i_dq_cmd.d, 1.9);
+//! # Ok::<(), ConfigError>(())
+//! ```
+#![no_std]
+
+pub mod angle;
+pub mod config;
+pub mod detent;
+pub mod drive;
+pub mod encoder;
+pub mod lowpass;
+pub mod modulator;
+pub mod park;
+pub mod pi;
+
+pub use angle::{MicrostepAccumulator, Position};
+pub use config::{Config, ConfigError, DriveSettings, Mode, MotorModel, Params, ServoGains};
+pub use detent::{Harmonic, HarmonicSeries, MAX_HARMONIC_ORDER};
+pub use drive::{Measurement, Output, Signals, State, step};
+pub use modulator::{LegDuties, Topology};
+pub use park::{Ab, Dq};
+
+#[cfg(test)]
+mod tests;

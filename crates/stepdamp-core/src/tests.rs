@@ -1,0 +1,254 @@
+//! Tests of the whole drive step.
+
+use super::*;
+use proptest::prelude::*;
+
+const DETENT: [Harmonic; 3] = [
+    Harmonic {
+        order: 4,
+        amplitude_nm: 0.02,
+        phase_rad: 0.0,
+    },
+    Harmonic {
+        order: 2,
+        amplitude_nm: 0.012,
+        phase_rad: 0.7,
+    },
+    Harmonic {
+        order: 1,
+        amplitude_nm: 0.008,
+        phase_rad: -1.1,
+    },
+];
+
+fn params(mode: Mode, compensation: bool) -> Params<'static> {
+    Params {
+        motor: MotorModel {
+            km_nm_per_a: 0.3,
+            pole_pairs: 50,
+            resistance_ohm: 0.9,
+            inductance_h: 2.5e-3,
+            coulomb_friction_nm: 0.01,
+            detent: &DETENT,
+        },
+        drive: DriveSettings {
+            bus_voltage_v: 48.0,
+            pwm_hz: 20_000.0,
+            holding_current_a: 1.9,
+            current_limit_a: 3.0,
+            current_loop_bandwidth_hz: 1500.0,
+            topology: Topology::ThreeLeg,
+        },
+        encoder_counts_per_rev: 4000,
+        servo: ServoGains::for_bandwidth(4.0e-5, 50.0, 300.0),
+        mode,
+        compensation,
+    }
+}
+
+#[test]
+fn config_rejects_nonsense_with_the_field_named() {
+    let mut p = params(Mode::OpenLoop, true);
+    p.motor.km_nm_per_a = 0.0;
+    let e = Config::new(&p).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            ConfigError::Invalid {
+                field: "motor.km_nm_per_a",
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    let mut p = params(Mode::OpenLoop, true);
+    p.drive.bus_voltage_v = -48.0;
+    assert!(matches!(
+        Config::new(&p),
+        Err(ConfigError::Invalid {
+            field: "drive.bus_voltage_v",
+            ..
+        })
+    ));
+    let mut p = params(Mode::OpenLoop, true);
+    p.drive.holding_current_a = 4.0;
+    assert!(matches!(
+        Config::new(&p),
+        Err(ConfigError::Invalid {
+            field: "drive.holding_current_a",
+            ..
+        })
+    ));
+    let mut p = params(Mode::OpenLoop, true);
+    p.motor.inductance_h = f32::NAN;
+    assert!(matches!(
+        Config::new(&p),
+        Err(ConfigError::Invalid {
+            field: "motor.inductance_h",
+            ..
+        })
+    ));
+    let mut p = params(Mode::OpenLoop, true);
+    p.drive.current_loop_bandwidth_hz = 6000.0;
+    assert!(Config::new(&p).is_err());
+    let mut p = params(Mode::OpenLoop, true);
+    p.encoder_counts_per_rev = 0;
+    assert!(Config::new(&p).is_err());
+}
+
+#[test]
+fn open_loop_commands_holding_current_and_compensation_at_theta_cmd() {
+    let cfg = Config::new(&params(Mode::OpenLoop, true)).unwrap();
+    let series = HarmonicSeries::new(&DETENT, 1.0 / 0.3).unwrap();
+    let mut st = State::default();
+    st.command_speed(&cfg, 5.0);
+    for _ in 0..500 {
+        let out = step(&cfg, &mut st, &Measurement::default());
+        let th = out.signals.theta_cmd.electrical_angle_rad();
+        assert_eq!(out.signals.i_dq_cmd.d, 1.9);
+        assert!((out.signals.i_dq_cmd.q - series.eval(th)).abs() < 1e-5);
+    }
+    // Without compensation the q command is zero.
+    let cfg = Config::new(&params(Mode::OpenLoop, false)).unwrap();
+    let mut st = State::default();
+    st.command_speed(&cfg, 5.0);
+    for _ in 0..100 {
+        assert_eq!(
+            step(&cfg, &mut st, &Measurement::default())
+                .signals
+                .i_dq_cmd
+                .q,
+            0.0
+        );
+    }
+}
+
+#[test]
+fn open_loop_angle_advances_at_the_commanded_speed() {
+    let cfg = Config::new(&params(Mode::OpenLoop, false)).unwrap();
+    let mut st = State::default();
+    st.command_speed(&cfg, 2.0);
+    for _ in 0..20_000 {
+        step(&cfg, &mut st, &Measurement::default());
+    }
+    // One second at 2 rad/s.
+    assert!((st.position_command().mechanical_rad_f64(50) - 2.0).abs() < 1e-6);
+}
+
+#[test]
+fn servo_pushes_toward_the_command_and_feeds_friction_forward() {
+    let cfg = Config::new(&params(Mode::Servo, true)).unwrap();
+    let mut st = State::default();
+    st.command_speed(&cfg, 1.0);
+    // Rotor held at 0 while the command moves on: positive q current, d = 0.
+    let mut last = 0.0;
+    for _ in 0..200 {
+        let out = step(&cfg, &mut st, &Measurement::default());
+        assert_eq!(out.signals.i_dq_cmd.d, 0.0);
+        last = out.signals.i_dq_cmd.q;
+    }
+    assert!(last > 0.01 / 0.3, "{last}");
+    // Rotor ahead of the command: negative q current.
+    let cfg = Config::new(&params(Mode::Servo, false)).unwrap();
+    let mut st = State::default();
+    let out = step(
+        &cfg,
+        &mut st,
+        &Measurement {
+            encoder_count: 40,
+            ..Default::default()
+        },
+    );
+    assert!(out.signals.i_dq_cmd.q < 0.0);
+}
+
+#[test]
+fn servo_current_command_is_clamped_to_the_limit() {
+    let cfg = Config::new(&params(Mode::Servo, true)).unwrap();
+    let mut st = State::default();
+    // Rotor far behind: half a revolution.
+    for _ in 0..1000 {
+        let out = step(
+            &cfg,
+            &mut st,
+            &Measurement {
+                encoder_count: 2000u32.wrapping_neg(),
+                ..Default::default()
+            },
+        );
+        assert!(out.signals.i_dq_cmd.q <= 3.0 && out.signals.i_dq_cmd.q > 2.99);
+    }
+}
+
+#[test]
+fn a_nan_sample_acts_as_a_repeat_of_the_last_good_sample() {
+    for mode in [Mode::OpenLoop, Mode::Servo] {
+        let cfg = Config::new(&params(mode, true)).unwrap();
+        let mut a = State::default();
+        let mut b = State::default();
+        a.command_speed(&cfg, 3.0);
+        b.command_speed(&cfg, 3.0);
+        let good = |k: u32| Measurement {
+            i_a_a: 1.0 + 0.001 * k as f32,
+            i_b_a: -0.5,
+            encoder_count: k / 10,
+        };
+        for k in 0..100 {
+            step(&cfg, &mut a, &good(k));
+            step(&cfg, &mut b, &good(k));
+        }
+        let last = good(99);
+        for (k, bad) in [f32::NAN, f32::INFINITY, 1e30].into_iter().enumerate() {
+            let oa = step(
+                &cfg,
+                &mut a,
+                &Measurement {
+                    i_a_a: bad,
+                    ..good(100 + k as u32)
+                },
+            );
+            let ob = step(
+                &cfg,
+                &mut b,
+                &Measurement {
+                    encoder_count: good(100 + k as u32).encoder_count,
+                    ..last
+                },
+            );
+            assert_eq!(oa.duties, ob.duties);
+        }
+        assert_eq!(a.sample_faults, 3);
+        for k in 103..200 {
+            assert_eq!(
+                step(&cfg, &mut a, &good(k)).duties,
+                step(&cfg, &mut b, &good(k)).duties
+            );
+        }
+    }
+}
+
+proptest! {
+    #[test]
+    fn any_input_sequence_gives_duties_in_range_and_finite_state(
+        seq in proptest::collection::vec(
+            (proptest::num::f32::ANY, proptest::num::f32::ANY, any::<u32>(), proptest::num::f32::ANY), 1..60),
+        servo in any::<bool>(),
+    ) {
+        let mode = if servo { Mode::Servo } else { Mode::OpenLoop };
+        let cfg = Config::new(&params(mode, true)).unwrap();
+        let mut st = State::default();
+        for (ia, ib, enc, w) in seq {
+            st.command_speed(&cfg, w);
+            let out = step(&cfg, &mut st, &Measurement { i_a_a: ia, i_b_a: ib, encoder_count: enc });
+            for d in out.duties.0 {
+                prop_assert!((0.0..=1.0).contains(&d));
+            }
+            prop_assert!(out.signals.v_ab.a.is_finite() && out.signals.v_ab.b.is_finite());
+        }
+        // After garbage, good samples still give sane, finite control.
+        for _ in 0..10 {
+            let out = step(&cfg, &mut st, &Measurement::default());
+            prop_assert!(out.signals.i_dq_cmd.q.is_finite());
+        }
+    }
+}
