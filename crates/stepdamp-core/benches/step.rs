@@ -6,21 +6,9 @@ use std::hint::black_box;
 use stepdamp_core::*;
 
 const DETENT: [Harmonic; 3] = [
-    Harmonic {
-        order: 4,
-        amplitude_nm: 0.02,
-        phase_rad: 0.0,
-    },
-    Harmonic {
-        order: 2,
-        amplitude_nm: 0.012,
-        phase_rad: 0.7,
-    },
-    Harmonic {
-        order: 1,
-        amplitude_nm: 0.008,
-        phase_rad: -1.1,
-    },
+    Harmonic { order: 4, amplitude_nm: 0.02, phase_rad: 0.0 },
+    Harmonic { order: 2, amplitude_nm: 0.012, phase_rad: 0.7 },
+    Harmonic { order: 1, amplitude_nm: 0.008, phase_rad: -1.1 },
 ];
 
 fn config(mode: Mode) -> Config {
@@ -50,10 +38,7 @@ fn config(mode: Mode) -> Config {
 }
 
 fn bench(c: &mut Criterion) {
-    for (name, mode) in [
-        ("open_loop_step", Mode::OpenLoop),
-        ("servo_step", Mode::Servo),
-    ] {
+    for (name, mode) in [("open_loop_step", Mode::OpenLoop), ("servo_step", Mode::Servo)] {
         let cfg = config(mode);
         let mut st = State::default();
         st.command_speed(&cfg, 8.4);
@@ -61,11 +46,7 @@ fn bench(c: &mut Criterion) {
         c.bench_function(name, |b| {
             b.iter(|| {
                 k = k.wrapping_add(1);
-                let m = Measurement {
-                    i_a_a: 1.2 + (k & 7) as f32 * 0.01,
-                    i_b_a: -0.4,
-                    encoder_count: k >> 3,
-                };
+                let m = Measurement { i_a_a: 1.2 + (k & 7) as f32 * 0.01, i_b_a: -0.4, encoder_count: k >> 3 };
                 black_box(step(black_box(&cfg), &mut st, black_box(&m)))
             })
         });

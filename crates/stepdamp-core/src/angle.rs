@@ -38,8 +38,7 @@ impl Position {
 
     /// The position of a mechanical angle in rad (rounded to the nearest unit, saturating).
     pub fn from_mechanical_rad_f64(theta_rad: f64, pole_pairs: u16) -> Position {
-        let units =
-            theta_rad * f64::from(pole_pairs) * UNITS_PER_ELECTRICAL_REV / core::f64::consts::TAU;
+        let units = theta_rad * f64::from(pole_pairs) * UNITS_PER_ELECTRICAL_REV / core::f64::consts::TAU;
         Position(libm::round(units) as i64)
     }
 }
@@ -80,10 +79,7 @@ impl MicrostepAccumulator {
     ///
     /// [`advance`]: MicrostepAccumulator::advance
     pub fn advance_by(&mut self, n: u64) {
-        self.position.0 = self
-            .position
-            .0
-            .wrapping_add(self.increment.wrapping_mul(n as i64));
+        self.position.0 = self.position.0.wrapping_add(self.increment.wrapping_mul(n as i64));
     }
 }
 
@@ -142,10 +138,7 @@ mod tests {
 
     #[test]
     fn advance_by_matches_repeated_advance() {
-        let mut a = MicrostepAccumulator {
-            position: Position(-17),
-            increment: 1_234_567_891,
-        };
+        let mut a = MicrostepAccumulator { position: Position(-17), increment: 1_234_567_891 };
         let mut b = a;
         for _ in 0..10_000 {
             a.advance();

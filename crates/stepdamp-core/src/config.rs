@@ -122,16 +122,10 @@ pub enum ConfigError {
 impl core::fmt::Display for ConfigError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            ConfigError::Invalid {
-                field,
-                value,
-                reason,
-            } => write!(f, "{field} = {value}: {reason}"),
-            ConfigError::HarmonicOrder { order } => write!(
-                f,
-                "detent harmonic order {order}: must be in 1..={}",
-                crate::detent::MAX_HARMONIC_ORDER
-            ),
+            ConfigError::Invalid { field, value, reason } => write!(f, "{field} = {value}: {reason}"),
+            ConfigError::HarmonicOrder { order } => {
+                write!(f, "detent harmonic order {order}: must be in 1..={}", crate::detent::MAX_HARMONIC_ORDER)
+            }
             ConfigError::DuplicateHarmonic { order } => {
                 write!(f, "detent harmonic order {order} is given more than once")
             }
@@ -163,6 +157,10 @@ pub struct Config {
     pub(crate) encoder: Encoder,
     /// Detent compensation current in A (zero series when compensation is off).
     pub(crate) compensation: HarmonicSeries,
+    /// Lead of the compensation current, s: the lag `1/ωc` of the closed current loop
+    /// (first order by design of the PI gains). Adding the computation delay made the
+    /// simulated residual worse (measured), so it is not added.
+    pub(crate) compensation_lead_s: f32,
     /// Servo gains divided by Km (A per rad/s, A per rad, A per rad·s).
     pub(crate) kpv_a: f32,
     pub(crate) kpp_a: f32,
@@ -177,11 +175,7 @@ fn positive(field: &'static str, v: f32) -> Result<f32, ConfigError> {
     if v.is_finite() && v > 0.0 {
         Ok(v)
     } else {
-        Err(ConfigError::Invalid {
-            field,
-            value: v,
-            reason: "must be finite and > 0",
-        })
+        Err(ConfigError::Invalid { field, value: v, reason: "must be finite and > 0" })
     }
 }
 
@@ -189,11 +183,7 @@ fn non_negative(field: &'static str, v: f32) -> Result<f32, ConfigError> {
     if v.is_finite() && v >= 0.0 {
         Ok(v)
     } else {
-        Err(ConfigError::Invalid {
-            field,
-            value: v,
-            reason: "must be finite and ≥ 0",
-        })
+        Err(ConfigError::Invalid { field, value: v, reason: "must be finite and ≥ 0" })
     }
 }
 
@@ -224,10 +214,7 @@ impl Config {
                 reason: "must not exceed drive.current_limit_a",
             });
         }
-        let bw = positive(
-            "drive.current_loop_bandwidth_hz",
-            d.current_loop_bandwidth_hz,
-        )?;
+        let bw = positive("drive.current_loop_bandwidth_hz", d.current_loop_bandwidth_hz)?;
         if bw > pwm / 4.0 {
             return Err(ConfigError::Invalid {
                 field: "drive.current_loop_bandwidth_hz",
@@ -246,10 +233,7 @@ impl Config {
         let s = &p.servo;
         let kpv = non_negative("servo.velocity_nm_s_per_rad", s.velocity_nm_s_per_rad)?;
         let kpp = non_negative("servo.position_nm_per_rad", s.position_nm_per_rad)?;
-        let kip = non_negative(
-            "servo.position_integral_nm_per_rad_s",
-            s.position_integral_nm_per_rad_s,
-        )?;
+        let kip = non_negative("servo.position_integral_nm_per_rad_s", s.position_integral_nm_per_rad_s)?;
         let vf = positive("servo.velocity_filter_hz", s.velocity_filter_hz)?;
         let ts = 1.0 / pwm;
         let series = HarmonicSeries::new(m.detent, 1.0 / km)?;
@@ -265,15 +249,16 @@ impl Config {
             pi: Pi::for_winding(r, l, bw, ts),
             integral_bound_v: vdc * d.topology.inscribed_radius_per_vdc(),
             units_per_rad_s: crate::angle::units_per_rad_s(m.pole_pairs, f64::from(ts)),
-            rad_per_unit: (core::f64::consts::TAU
-                / crate::angle::UNITS_PER_ELECTRICAL_REV
-                / f64::from(m.pole_pairs)) as f32,
+            rad_per_unit: (core::f64::consts::TAU / crate::angle::UNITS_PER_ELECTRICAL_REV / f64::from(m.pole_pairs))
+                as f32,
             period_s: ts,
             encoder: Encoder::new(cpr, m.pole_pairs, ts, vf),
-            compensation: if on {
-                series
-            } else {
-                HarmonicSeries::default()
+            compensation: if on { series } else { HarmonicSeries::default() },
+            // Only where the compensation angle is the rotor's own: in open loop the
+            // patent's law evaluates at θ_cmd, which the rotor lags anyway.
+            compensation_lead_s: match p.mode {
+                Mode::Servo => 1.0 / (core::f32::consts::TAU * bw),
+                Mode::OpenLoop => 0.0,
             },
             kpv_a: kpv / km,
             kpp_a: kpp / km,

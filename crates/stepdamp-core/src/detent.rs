@@ -32,11 +32,7 @@ pub struct HarmonicSeries {
 
 impl Default for HarmonicSeries {
     fn default() -> Self {
-        HarmonicSeries {
-            sin_coef: [0.0; MAX_HARMONIC_ORDER],
-            cos_coef: [0.0; MAX_HARMONIC_ORDER],
-            max_order: 0,
-        }
+        HarmonicSeries { sin_coef: [0.0; MAX_HARMONIC_ORDER], cos_coef: [0.0; MAX_HARMONIC_ORDER], max_order: 0 }
     }
 }
 
@@ -100,19 +96,20 @@ impl HarmonicSeries {
         self.eval_sin_cos(s, c)
     }
 
-    /// Derivative of the series with respect to `θe` at `(sin θe, cos θe)`:
-    /// `Σ k (a_k cos kθe − b_k sin kθe)`.
+    /// The series and its derivative with respect to `θe` at `(sin θe, cos θe)`:
+    /// `(Σ a_k sin kθe + b_k cos kθe, Σ k (a_k cos kθe − b_k sin kθe))`, in one pass.
     #[inline]
-    pub fn derivative_sin_cos(&self, s1: f32, c1: f32) -> f32 {
+    pub fn eval_with_slope(&self, s1: f32, c1: f32) -> (f32, f32) {
         let (mut sk, mut ck) = (s1, c1);
-        let mut sum = 0.0;
+        let (mut sum, mut slope) = (0.0, 0.0);
         for k in 0..self.max_order.min(MAX_HARMONIC_ORDER) {
-            sum += (k as f32 + 1.0) * (self.sin_coef[k] * ck - self.cos_coef[k] * sk);
+            sum += self.sin_coef[k] * sk + self.cos_coef[k] * ck;
+            slope += (k as f32 + 1.0) * (self.sin_coef[k] * ck - self.cos_coef[k] * sk);
             let next_s = sk * c1 + ck * s1;
             ck = ck * c1 - sk * s1;
             sk = next_s;
         }
-        sum
+        (sum, slope)
     }
 }
 
@@ -123,84 +120,36 @@ mod tests {
 
     fn patent() -> [Harmonic; 3] {
         [
-            Harmonic {
-                order: 4,
-                amplitude_nm: 0.02,
-                phase_rad: 0.0,
-            },
-            Harmonic {
-                order: 2,
-                amplitude_nm: 0.012,
-                phase_rad: 0.7,
-            },
-            Harmonic {
-                order: 1,
-                amplitude_nm: 0.008,
-                phase_rad: -1.1,
-            },
+            Harmonic { order: 4, amplitude_nm: 0.02, phase_rad: 0.0 },
+            Harmonic { order: 2, amplitude_nm: 0.012, phase_rad: 0.7 },
+            Harmonic { order: 1, amplitude_nm: 0.008, phase_rad: -1.1 },
         ]
     }
 
     fn direct(h: &[Harmonic], th: f32) -> f32 {
-        h.iter()
-            .map(|h| h.amplitude_nm * libm::sinf(h.order as f32 * th + h.phase_rad))
-            .sum()
+        h.iter().map(|h| h.amplitude_nm * libm::sinf(h.order as f32 * th + h.phase_rad)).sum()
     }
 
     #[test]
     fn rejects_bad_orders_and_duplicates() {
-        let bad = [Harmonic {
-            order: 0,
-            amplitude_nm: 1.0,
-            phase_rad: 0.0,
-        }];
-        assert_eq!(
-            HarmonicSeries::new(&bad, 1.0),
-            Err(ConfigError::HarmonicOrder { order: 0 })
-        );
-        let bad = [Harmonic {
-            order: 33,
-            amplitude_nm: 1.0,
-            phase_rad: 0.0,
-        }];
+        let bad = [Harmonic { order: 0, amplitude_nm: 1.0, phase_rad: 0.0 }];
+        assert_eq!(HarmonicSeries::new(&bad, 1.0), Err(ConfigError::HarmonicOrder { order: 0 }));
+        let bad = [Harmonic { order: 33, amplitude_nm: 1.0, phase_rad: 0.0 }];
         assert!(HarmonicSeries::new(&bad, 1.0).is_err());
         let dup = [
-            Harmonic {
-                order: 2,
-                amplitude_nm: 1.0,
-                phase_rad: 0.0,
-            },
-            Harmonic {
-                order: 2,
-                amplitude_nm: 0.0,
-                phase_rad: 0.0,
-            },
+            Harmonic { order: 2, amplitude_nm: 1.0, phase_rad: 0.0 },
+            Harmonic { order: 2, amplitude_nm: 0.0, phase_rad: 0.0 },
         ];
-        assert_eq!(
-            HarmonicSeries::new(&dup, 1.0),
-            Err(ConfigError::DuplicateHarmonic { order: 2 })
-        );
-        let nan = [Harmonic {
-            order: 1,
-            amplitude_nm: f32::NAN,
-            phase_rad: 0.0,
-        }];
+        assert_eq!(HarmonicSeries::new(&dup, 1.0), Err(ConfigError::DuplicateHarmonic { order: 2 }));
+        let nan = [Harmonic { order: 1, amplitude_nm: f32::NAN, phase_rad: 0.0 }];
         assert!(HarmonicSeries::new(&nan, 1.0).is_err());
     }
 
     #[test]
     fn high_orders_stay_accurate() {
         let h = [
-            Harmonic {
-                order: 32,
-                amplitude_nm: 1.0,
-                phase_rad: 0.3,
-            },
-            Harmonic {
-                order: 17,
-                amplitude_nm: 0.5,
-                phase_rad: -2.0,
-            },
+            Harmonic { order: 32, amplitude_nm: 1.0, phase_rad: 0.3 },
+            Harmonic { order: 17, amplitude_nm: 0.5, phase_rad: -2.0 },
         ];
         let s = HarmonicSeries::new(&h, 1.0).unwrap();
         for i in 0..1000 {
@@ -225,7 +174,9 @@ mod tests {
             let h = 1e-3;
             let fd = (s.eval(th + h) - s.eval(th - h)) / (2.0 * h);
             let (sn, cs) = libm::sincosf(th);
-            prop_assert!((s.derivative_sin_cos(sn, cs) - fd).abs() < 2e-4);
+            let (v, slope) = s.eval_with_slope(sn, cs);
+            prop_assert!((slope - fd).abs() < 2e-4);
+            prop_assert!((v - s.eval(th)).abs() < 1e-6);
         }
     }
 }

@@ -14,7 +14,7 @@ pub struct Measurement {
     /// Phase B current in A.
     pub i_b_a: f32,
     /// Raw free-running encoder counter (wrapping; 0 at power-on with the rotor at θ = 0).
-    /// Ignored in open loop.
+    /// Open loop only records it (leave it 0 when there is no encoder).
     pub encoder_count: u32,
 }
 
@@ -38,9 +38,9 @@ pub struct State {
 pub struct Signals {
     /// Commanded position `θ_cmd` used this period.
     pub theta_cmd: Position,
-    /// Encoder position `θ_fb` (servo mode; stays 0 in open loop).
+    /// Encoder position `θ_fb` (read in both modes; only servo mode acts on it).
     pub theta_fb: Position,
-    /// Filtered encoder velocity in rad/s (servo mode).
+    /// Filtered encoder velocity in rad/s.
     pub omega_fb_rad_s: f32,
     /// Measured currents in the controller's frame, A.
     pub i_dq: Dq,
@@ -89,15 +89,8 @@ impl State {
 #[inline]
 pub fn step(cfg: &Config, st: &mut State, m: &Measurement) -> Output {
     let lim = cfg.current_sample_limit_a;
-    let i_ab = if m.i_a_a.is_finite()
-        && m.i_b_a.is_finite()
-        && m.i_a_a.abs() <= lim
-        && m.i_b_a.abs() <= lim
-    {
-        let x = Ab {
-            a: m.i_a_a,
-            b: m.i_b_a,
-        };
+    let i_ab = if m.i_a_a.is_finite() && m.i_b_a.is_finite() && m.i_a_a.abs() <= lim && m.i_b_a.abs() <= lim {
+        let x = Ab { a: m.i_a_a, b: m.i_b_a };
         st.last_current = x;
         x
     } else {
@@ -106,49 +99,40 @@ pub fn step(cfg: &Config, st: &mut State, m: &Measurement) -> Output {
     };
     let theta_cmd = st.command.position;
 
-    let (theta_ctl, theta_fb) = match cfg.mode {
-        Mode::OpenLoop => (theta_cmd, Position::default()),
-        Mode::Servo => {
-            let fb = cfg.encoder.update(&mut st.encoder, m.encoder_count);
-            (fb, fb)
-        }
+    // The encoder is read in both modes; open loop only records it.
+    let theta_fb = cfg.encoder.update(&mut st.encoder, m.encoder_count);
+    let theta_ctl = match cfg.mode {
+        Mode::OpenLoop => theta_cmd,
+        Mode::Servo => theta_fb,
     };
     let (sin, cos) = libm::sincosf(theta_ctl.electrical_angle_rad());
     let i_dq = park(i_ab, sin, cos);
-    let comp_a = cfg.compensation.eval_sin_cos(sin, cos);
+    // The closed current loop is first order, `1/(1 + s/ωc)`: command the compensation
+    // through its inverse along the commanded electrical speed, `S + (1/ωc)·ωe·dS/dθe`,
+    // so the current itself lands on the detent at every harmonic order. Applied where
+    // the angle is the rotor's own (servo); zero in the patent's open loop.
+    let (series, slope) = cfg.compensation.eval_with_slope(sin, cos);
+    let omega_e = st.speed_cmd_rad_s * f32::from(cfg.pole_pairs);
+    let comp_a = series + cfg.compensation_lead_s * omega_e * slope;
 
     let i_dq_cmd = match cfg.mode {
         Mode::OpenLoop => {
             let q = cfg.open_loop_iq_limit_a;
-            Dq {
-                d: cfg.holding_current_a,
-                q: comp_a.max(-q).min(q),
-            }
+            Dq { d: cfg.holding_current_a, q: comp_a.max(-q).min(q) }
         }
         Mode::Servo => servo_law(cfg, st, theta_cmd, theta_fb, comp_a),
     };
 
     // Current loop: PI on d and q, inverse Park, limit the vector on the bus, anti-windup.
-    let e = Dq {
-        d: i_dq_cmd.d - i_dq.d,
-        q: i_dq_cmd.q - i_dq.q,
-    };
-    let v_unlim = Dq {
-        d: cfg.pi.output(st.integral_d_v, e.d),
-        q: cfg.pi.output(st.integral_q_v, e.q),
-    };
+    let e = Dq { d: i_dq_cmd.d - i_dq.d, q: i_dq_cmd.q - i_dq.q };
+    let v_unlim = Dq { d: cfg.pi.output(st.integral_d_v, e.d), q: cfg.pi.output(st.integral_q_v, e.q) };
     let v_ab_req = inverse_park(v_unlim, sin, cos);
     let modulated = cfg.topology.modulate(v_ab_req, cfg.bus_voltage_v);
     let limited = modulated.scale < 1.0;
     let bound = cfg.integral_bound_v;
-    cfg.pi
-        .commit(&mut st.integral_d_v, e.d, v_unlim.d, limited, bound);
-    cfg.pi
-        .commit(&mut st.integral_q_v, e.q, v_unlim.q, limited, bound);
-    let v_ab = Ab {
-        a: v_ab_req.a * modulated.scale,
-        b: v_ab_req.b * modulated.scale,
-    };
+    cfg.pi.commit(&mut st.integral_d_v, e.d, v_unlim.d, limited, bound);
+    cfg.pi.commit(&mut st.integral_q_v, e.q, v_unlim.q, limited, bound);
+    let v_ab = Ab { a: v_ab_req.a * modulated.scale, b: v_ab_req.b * modulated.scale };
 
     st.command.advance();
     Output {
@@ -169,13 +153,7 @@ pub fn step(cfg: &Config, st: &mut State, m: &Measurement) -> Output {
 /// clamped to the current limit; the position integral stops while the clamp pushes the
 /// same way (anti-windup).
 #[inline]
-fn servo_law(
-    cfg: &Config,
-    st: &mut State,
-    theta_cmd: Position,
-    theta_fb: Position,
-    comp_a: f32,
-) -> Dq {
+fn servo_law(cfg: &Config, st: &mut State, theta_cmd: Position, theta_fb: Position, comp_a: f32) -> Dq {
     let theta_err = theta_cmd.wrapping_diff(theta_fb) as f32 * cfg.rad_per_unit;
     let omega_err = st.speed_cmd_rad_s - st.encoder.velocity_rad_s;
     let friction = if st.speed_cmd_rad_s > 0.0 {
@@ -186,11 +164,7 @@ fn servo_law(
         0.0
     };
     let integral_next = st.position_integral_rad_s + theta_err * cfg.period_s;
-    let iq = cfg.kpv_a * omega_err
-        + cfg.kpp_a * theta_err
-        + cfg.kip_a * integral_next
-        + comp_a
-        + friction;
+    let iq = cfg.kpv_a * omega_err + cfg.kpp_a * theta_err + cfg.kip_a * integral_next + comp_a + friction;
     let lim = cfg.current_limit_a;
     let clamped = iq.max(-lim).min(lim);
     if clamped == iq || theta_err * iq < 0.0 {

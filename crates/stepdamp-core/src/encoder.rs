@@ -32,12 +32,7 @@ pub struct EncoderState {
 impl Encoder {
     /// `counts_per_rev` in `1..=2²⁰` and `pole_pairs` in `1..=1024` (checked by
     /// [`crate::Config::new`]).
-    pub fn new(
-        counts_per_rev: u32,
-        pole_pairs: u16,
-        period_s: f32,
-        velocity_filter_hz: f32,
-    ) -> Self {
+    pub fn new(counts_per_rev: u32, pole_pairs: u16, period_s: f32, velocity_filter_hz: f32) -> Self {
         Encoder {
             counts_per_rev: counts_per_rev.max(1),
             pole_pairs: pole_pairs.max(1),
@@ -64,8 +59,7 @@ impl Encoder {
             st.revs = st.revs.wrapping_add(r.div_euclid(cpr));
             st.rem = r.rem_euclid(cpr) as u32;
         }
-        self.velocity_filter
-            .update(&mut st.velocity_rad_s, delta as f32 * self.rad_s_per_count);
+        self.velocity_filter.update(&mut st.velocity_rad_s, delta as f32 * self.rad_s_per_count);
         self.position(st)
     }
 
@@ -74,12 +68,10 @@ impl Encoder {
     pub fn position(&self, st: &EncoderState) -> Position {
         let np = u64::from(self.pole_pairs);
         // rem·Nr < 2³⁰, so the shift cannot overflow.
-        let frac = ((u64::from(st.rem) * np) << 32) / u64::from(self.counts_per_rev);
-        Position(
-            st.revs
-                .wrapping_mul((np << 32) as i64)
-                .wrapping_add(frac as i64),
-        )
+        // The centre of the count's interval [n, n+1): the unbiased estimate whichever way
+        // the rotor turns (rem + ½ counts; 2·rem + 1 < 2²¹, so the shift cannot overflow).
+        let frac = (((2 * u64::from(st.rem) + 1) * np) << 31) / u64::from(self.counts_per_rev);
+        Position(st.revs.wrapping_mul((np << 32) as i64).wrapping_add(frac as i64))
     }
 }
 
@@ -91,16 +83,16 @@ mod tests {
     fn counts_map_to_exact_angles_across_wraps() {
         let enc = Encoder::new(4000, 50, 5e-5, 0.0);
         let mut st = EncoderState::default();
-        // One count back from zero: −1/4000 rev = −π/2000 rad.
+        // One count back from zero: the centre of count −1 is −½/4000 rev = −π/4000 rad.
         let p = enc.update(&mut st, u32::MAX);
-        assert!((p.mechanical_rad_f64(50) + core::f64::consts::PI / 2000.0).abs() < 1e-9);
+        assert!((p.mechanical_rad_f64(50) + core::f64::consts::PI / 4000.0).abs() < 1e-9);
         // 2.5 revolutions forward in steps of 997 counts, wrapping the u32 counter.
         let mut raw = u32::MAX;
         for _ in 0..10 {
             raw = raw.wrapping_add(1001);
             enc.update(&mut st, raw);
         }
-        let want = (10 * 1001 - 1) as f64 / 4000.0 * core::f64::consts::TAU;
+        let want = (10.0 * 1001.0 - 0.5) / 4000.0 * core::f64::consts::TAU;
         assert!((enc.position(&st).mechanical_rad_f64(50) - want).abs() < 1e-9);
     }
 
@@ -118,8 +110,8 @@ mod tests {
     fn electrical_angle_of_a_count_is_exact() {
         let enc = Encoder::new(4000, 50, 5e-5, 0.0);
         let mut st = EncoderState::default();
-        // 20 counts = 1/4 of an electrical period (80 counts per electrical rev).
+        // Count 20 spans [20, 21) of the 80 counts per electrical rev: centre 20.5/80 turn.
         let p = enc.update(&mut st, 20);
-        assert!((p.electrical_angle_rad() - core::f32::consts::FRAC_PI_2).abs() < 1e-6);
+        assert!((p.electrical_angle_rad() - 20.5 / 80.0 * core::f32::consts::TAU).abs() < 1e-6);
     }
 }

@@ -62,10 +62,7 @@ impl Topology {
     #[inline]
     pub fn modulate(self, v: Ab, vdc: f32) -> Modulated {
         if !(v.a.is_finite() && v.b.is_finite() && vdc.is_finite() && vdc > 0.0) {
-            return Modulated {
-                duties: self.neutral(),
-                scale: 0.0,
-            };
+            return Modulated { duties: self.neutral(), scale: 0.0 };
         }
         let inv = 1.0 / vdc;
         match self {
@@ -76,32 +73,16 @@ impl Topology {
                 let scale = if span > vdc { vdc / span } else { 1.0 };
                 let (va, vb) = (v.a * scale, v.b * scale);
                 let vo = 0.5 * vdc - 0.5 * (vmax + vmin) * scale;
-                let d = [
-                    clamp01((va + vo) * inv),
-                    clamp01((vb + vo) * inv),
-                    clamp01(vo * inv),
-                    0.0,
-                ];
-                Modulated {
-                    duties: LegDuties(d),
-                    scale,
-                }
+                let d = [clamp01((va + vo) * inv), clamp01((vb + vo) * inv), clamp01(vo * inv), 0.0];
+                Modulated { duties: LegDuties(d), scale }
             }
             Topology::TwoHBridge => {
                 let m = v.a.abs().max(v.b.abs());
                 let scale = if m > vdc { vdc / m } else { 1.0 };
                 let ha = 0.5 * v.a * scale * inv;
                 let hb = 0.5 * v.b * scale * inv;
-                let d = [
-                    clamp01(0.5 + ha),
-                    clamp01(0.5 - ha),
-                    clamp01(0.5 + hb),
-                    clamp01(0.5 - hb),
-                ];
-                Modulated {
-                    duties: LegDuties(d),
-                    scale,
-                }
+                let d = [clamp01(0.5 + ha), clamp01(0.5 - ha), clamp01(0.5 + hb), clamp01(0.5 - hb)];
+                Modulated { duties: LegDuties(d), scale }
             }
         }
     }
@@ -166,16 +147,7 @@ mod tests {
     #[test]
     fn non_finite_demand_gives_zero_volts() {
         for t in TOPOLOGIES {
-            for v in [
-                Ab {
-                    a: f32::NAN,
-                    b: 1.0,
-                },
-                Ab {
-                    a: 1.0,
-                    b: f32::INFINITY,
-                },
-            ] {
+            for v in [Ab { a: f32::NAN, b: 1.0 }, Ab { a: 1.0, b: f32::INFINITY }] {
                 let m = t.modulate(v, 48.0);
                 assert_eq!(t.winding_voltages_per_vdc(&m.duties), (0.0, 0.0));
             }

@@ -28,19 +28,13 @@ pub struct Ab {
 /// Park transform with `(sin θe, cos θe)` given.
 #[inline]
 pub fn park(x: Ab, sin: f32, cos: f32) -> Dq {
-    Dq {
-        d: x.a * cos + x.b * sin,
-        q: -x.a * sin + x.b * cos,
-    }
+    Dq { d: x.a * cos + x.b * sin, q: -x.a * sin + x.b * cos }
 }
 
 /// Inverse Park transform with `(sin θe, cos θe)` given.
 #[inline]
 pub fn inverse_park(x: Dq, sin: f32, cos: f32) -> Ab {
-    Ab {
-        a: x.d * cos - x.q * sin,
-        b: x.d * sin + x.q * cos,
-    }
+    Ab { a: x.d * cos - x.q * sin, b: x.d * sin + x.q * cos }
 }
 
 #[cfg(test)]

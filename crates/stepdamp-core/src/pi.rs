@@ -22,17 +22,9 @@ pub struct Pi {
 impl Pi {
     /// Current-loop gains for a winding of `resistance_ohm`, `inductance_h` and a closed
     /// loop bandwidth of `bandwidth_hz`, sampled every `period_s`.
-    pub fn for_winding(
-        resistance_ohm: f32,
-        inductance_h: f32,
-        bandwidth_hz: f32,
-        period_s: f32,
-    ) -> Self {
+    pub fn for_winding(resistance_ohm: f32, inductance_h: f32, bandwidth_hz: f32, period_s: f32) -> Self {
         let wc = core::f32::consts::TAU * bandwidth_hz;
-        Pi {
-            kp: inductance_h * wc,
-            ki_ts: resistance_ohm * wc * period_s,
-        }
+        Pi { kp: inductance_h * wc, ki_ts: resistance_ohm * wc * period_s }
     }
 
     /// The output before limiting, for error `e` and integrator `integral`
@@ -97,10 +89,7 @@ mod tests {
         // 10 ms (3.5 winding time constants).
         run(&pi, &mut a, &mut ia, 1.0, 10.0, 200);
         run(&pi, &mut b, &mut ib, 1.0, 10.0, 200);
-        assert!(
-            (ia - 1.0).abs() < 0.02 && (ib - 1.0).abs() < 0.02,
-            "{ia} {ib}"
-        );
+        assert!((ia - 1.0).abs() < 0.02 && (ib - 1.0).abs() < 0.02, "{ia} {ib}");
     }
 
     proptest! {

@@ -4,21 +4,9 @@ use super::*;
 use proptest::prelude::*;
 
 const DETENT: [Harmonic; 3] = [
-    Harmonic {
-        order: 4,
-        amplitude_nm: 0.02,
-        phase_rad: 0.0,
-    },
-    Harmonic {
-        order: 2,
-        amplitude_nm: 0.012,
-        phase_rad: 0.7,
-    },
-    Harmonic {
-        order: 1,
-        amplitude_nm: 0.008,
-        phase_rad: -1.1,
-    },
+    Harmonic { order: 4, amplitude_nm: 0.02, phase_rad: 0.0 },
+    Harmonic { order: 2, amplitude_nm: 0.012, phase_rad: 0.7 },
+    Harmonic { order: 1, amplitude_nm: 0.008, phase_rad: -1.1 },
 ];
 
 fn params(mode: Mode, compensation: bool) -> Params<'static> {
@@ -51,43 +39,16 @@ fn config_rejects_nonsense_with_the_field_named() {
     let mut p = params(Mode::OpenLoop, true);
     p.motor.km_nm_per_a = 0.0;
     let e = Config::new(&p).unwrap_err();
-    assert!(
-        matches!(
-            e,
-            ConfigError::Invalid {
-                field: "motor.km_nm_per_a",
-                ..
-            }
-        ),
-        "{e:?}"
-    );
+    assert!(matches!(e, ConfigError::Invalid { field: "motor.km_nm_per_a", .. }), "{e:?}");
     let mut p = params(Mode::OpenLoop, true);
     p.drive.bus_voltage_v = -48.0;
-    assert!(matches!(
-        Config::new(&p),
-        Err(ConfigError::Invalid {
-            field: "drive.bus_voltage_v",
-            ..
-        })
-    ));
+    assert!(matches!(Config::new(&p), Err(ConfigError::Invalid { field: "drive.bus_voltage_v", .. })));
     let mut p = params(Mode::OpenLoop, true);
     p.drive.holding_current_a = 4.0;
-    assert!(matches!(
-        Config::new(&p),
-        Err(ConfigError::Invalid {
-            field: "drive.holding_current_a",
-            ..
-        })
-    ));
+    assert!(matches!(Config::new(&p), Err(ConfigError::Invalid { field: "drive.holding_current_a", .. })));
     let mut p = params(Mode::OpenLoop, true);
     p.motor.inductance_h = f32::NAN;
-    assert!(matches!(
-        Config::new(&p),
-        Err(ConfigError::Invalid {
-            field: "motor.inductance_h",
-            ..
-        })
-    ));
+    assert!(matches!(Config::new(&p), Err(ConfigError::Invalid { field: "motor.inductance_h", .. })));
     let mut p = params(Mode::OpenLoop, true);
     p.drive.current_loop_bandwidth_hz = 6000.0;
     assert!(Config::new(&p).is_err());
@@ -113,13 +74,7 @@ fn open_loop_commands_holding_current_and_compensation_at_theta_cmd() {
     let mut st = State::default();
     st.command_speed(&cfg, 5.0);
     for _ in 0..100 {
-        assert_eq!(
-            step(&cfg, &mut st, &Measurement::default())
-                .signals
-                .i_dq_cmd
-                .q,
-            0.0
-        );
+        assert_eq!(step(&cfg, &mut st, &Measurement::default()).signals.i_dq_cmd.q, 0.0);
     }
 }
 
@@ -151,14 +106,7 @@ fn servo_pushes_toward_the_command_and_feeds_friction_forward() {
     // Rotor ahead of the command: negative q current.
     let cfg = Config::new(&params(Mode::Servo, false)).unwrap();
     let mut st = State::default();
-    let out = step(
-        &cfg,
-        &mut st,
-        &Measurement {
-            encoder_count: 40,
-            ..Default::default()
-        },
-    );
+    let out = step(&cfg, &mut st, &Measurement { encoder_count: 40, ..Default::default() });
     assert!(out.signals.i_dq_cmd.q < 0.0);
 }
 
@@ -168,14 +116,7 @@ fn servo_current_command_is_clamped_to_the_limit() {
     let mut st = State::default();
     // Rotor far behind: half a revolution.
     for _ in 0..1000 {
-        let out = step(
-            &cfg,
-            &mut st,
-            &Measurement {
-                encoder_count: 2000u32.wrapping_neg(),
-                ..Default::default()
-            },
-        );
+        let out = step(&cfg, &mut st, &Measurement { encoder_count: 2000u32.wrapping_neg(), ..Default::default() });
         assert!(out.signals.i_dq_cmd.q <= 3.0 && out.signals.i_dq_cmd.q > 2.99);
     }
 }
@@ -188,41 +129,20 @@ fn a_nan_sample_acts_as_a_repeat_of_the_last_good_sample() {
         let mut b = State::default();
         a.command_speed(&cfg, 3.0);
         b.command_speed(&cfg, 3.0);
-        let good = |k: u32| Measurement {
-            i_a_a: 1.0 + 0.001 * k as f32,
-            i_b_a: -0.5,
-            encoder_count: k / 10,
-        };
+        let good = |k: u32| Measurement { i_a_a: 1.0 + 0.001 * k as f32, i_b_a: -0.5, encoder_count: k / 10 };
         for k in 0..100 {
             step(&cfg, &mut a, &good(k));
             step(&cfg, &mut b, &good(k));
         }
         let last = good(99);
         for (k, bad) in [f32::NAN, f32::INFINITY, 1e30].into_iter().enumerate() {
-            let oa = step(
-                &cfg,
-                &mut a,
-                &Measurement {
-                    i_a_a: bad,
-                    ..good(100 + k as u32)
-                },
-            );
-            let ob = step(
-                &cfg,
-                &mut b,
-                &Measurement {
-                    encoder_count: good(100 + k as u32).encoder_count,
-                    ..last
-                },
-            );
+            let oa = step(&cfg, &mut a, &Measurement { i_a_a: bad, ..good(100 + k as u32) });
+            let ob = step(&cfg, &mut b, &Measurement { encoder_count: good(100 + k as u32).encoder_count, ..last });
             assert_eq!(oa.duties, ob.duties);
         }
         assert_eq!(a.sample_faults, 3);
         for k in 103..200 {
-            assert_eq!(
-                step(&cfg, &mut a, &good(k)).duties,
-                step(&cfg, &mut b, &good(k)).duties
-            );
+            assert_eq!(step(&cfg, &mut a, &good(k)).duties, step(&cfg, &mut b, &good(k)).duties);
         }
     }
 }

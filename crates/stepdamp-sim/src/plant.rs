@@ -1,0 +1,286 @@
+//! The two-phase hybrid stepper, its friction and its load, in `f64` (design.md §2).
+//!
+//! ```text
+//! L di_a/dt = v_a − R i_a + Km ω sin θe        θe = Nr θ
+//! L di_b/dt = v_b − R i_b − Km ω cos θe        (the patent's eq. 2 prints sin: a typo)
+//! τ_m       = Km (−i_a sin θe + i_b cos θe)
+//! τ_detent  = −Σ_k A_k sin(k θe + φ_k)
+//! J dω/dt   = τ_m + τ_detent − D ω + τ_load + τ_coulomb,   dθ/dt = ω
+//! ```
+//!
+//! Coulomb friction follows Karnopp's stick/slip rule: inside a velocity band `|ω| < ω_s`
+//! the rotor sticks (`dω/dt = 0`) while the other torques stay within `Fs`, and breaks
+//! away with `Fs` opposing them otherwise; outside the band it is `−Fs·sgn(ω)`. The band is
+//! the speed change that `Fs` alone makes in one integration step, so the model is never
+//! stiff. Integration is classical RK4 with the voltages held over the step.
+
+use crate::profile::Profile;
+
+/// Plant parameters in SI units.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlantParams {
+    /// Torque constant `Km` in N·m/A.
+    pub km: f64,
+    /// Pole pairs `Nr`.
+    pub nr: f64,
+    /// Phase resistance in Ω.
+    pub r: f64,
+    /// Phase inductance in H.
+    pub l: f64,
+    /// Inertia in kg·m².
+    pub j: f64,
+    /// Viscous friction in N·m·s/rad.
+    pub d: f64,
+    /// Coulomb friction in N·m.
+    pub fs: f64,
+    /// Detent harmonics, dense by order: `(A cos φ, A sin φ)` at index `k − 1`.
+    pub detent: Vec<(f64, f64)>,
+    /// Constant external load torque on the rotor in N·m (signed).
+    pub load_torque_nm: f64,
+}
+
+/// Plant state.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PlantState {
+    /// Phase A current in A.
+    pub i_a: f64,
+    /// Phase B current in A.
+    pub i_b: f64,
+    /// Rotor angle in rad (mechanical).
+    pub theta: f64,
+    /// Rotor speed in rad/s.
+    pub omega: f64,
+}
+
+impl PlantParams {
+    /// The plant a profile describes, with no load torque.
+    pub fn from_profile(p: &Profile) -> Self {
+        let max = p.motor.detent.iter().map(|h| usize::from(h.order)).max().unwrap_or(0);
+        let mut detent = vec![(0.0, 0.0); max];
+        for h in &p.motor.detent {
+            detent[usize::from(h.order) - 1] = (h.amplitude_nm * h.phase_rad.cos(), h.amplitude_nm * h.phase_rad.sin());
+        }
+        PlantParams {
+            km: p.motor.km_nm_per_a,
+            nr: f64::from(p.motor.pole_pairs),
+            r: p.motor.resistance_ohm,
+            l: p.motor.inductance_h,
+            j: p.motor.inertia_kg_m2,
+            d: p.motor.viscous_nm_s_per_rad,
+            fs: p.motor.coulomb_friction_nm,
+            detent,
+            load_torque_nm: 0.0,
+        }
+    }
+
+    /// `Σ A_k sin(k θe + φ_k)` given `(sin θe, cos θe)` (detent torque is minus this).
+    #[inline]
+    pub fn detent_series(&self, s1: f64, c1: f64) -> f64 {
+        let (mut sk, mut ck) = (s1, c1);
+        let mut sum = 0.0;
+        for &(a, b) in &self.detent {
+            sum += a * sk + b * ck;
+            let ns = sk * c1 + ck * s1;
+            ck = ck * c1 - sk * s1;
+            sk = ns;
+        }
+        sum
+    }
+
+    /// Detent potential energy `U(θ)` in J with `τ_detent = −dU/dθ`:
+    /// `U = −Σ A_k cos(k θe + φ_k) / (k Nr)`.
+    pub fn detent_energy(&self, theta: f64) -> f64 {
+        let te = self.nr * theta;
+        self.detent
+            .iter()
+            .enumerate()
+            .map(|(i, &(a, b))| {
+                let k = (i + 1) as f64;
+                // A cos(kθe + φ) = a cos kθe − b sin kθe.
+                -(a * (k * te).cos() - b * (k * te).sin()) / (k * self.nr)
+            })
+            .sum()
+    }
+
+    /// Motor torque `Km(−i_a sin θe + i_b cos θe)` in N·m.
+    #[inline]
+    pub fn motor_torque(&self, x: &PlantState) -> f64 {
+        let (s, c) = (self.nr * x.theta).sin_cos();
+        self.km * (-x.i_a * s + x.i_b * c)
+    }
+
+    /// Back-EMF `(e_a, e_b) = (−Km ω sin θe, Km ω cos θe)` in V (the winding equation is
+    /// `L di/dt = v − R i − e`).
+    #[inline]
+    pub fn back_emf(&self, x: &PlantState) -> (f64, f64) {
+        let (s, c) = (self.nr * x.theta).sin_cos();
+        (-self.km * x.omega * s, self.km * x.omega * c)
+    }
+
+    /// Time derivative of the state for winding voltages `(v_a, v_b)`; `stick_band` is the
+    /// Karnopp velocity band in rad/s.
+    #[inline]
+    pub fn derivative(&self, x: &PlantState, va: f64, vb: f64, stick_band: f64) -> PlantState {
+        let (s, c) = (self.nr * x.theta).sin_cos();
+        let inv_l = 1.0 / self.l;
+        let di_a = (va - self.r * x.i_a + self.km * x.omega * s) * inv_l;
+        let di_b = (vb - self.r * x.i_b - self.km * x.omega * c) * inv_l;
+        let tau_m = self.km * (-x.i_a * s + x.i_b * c);
+        let others = tau_m - self.detent_series(s, c) - self.d * x.omega + self.load_torque_nm;
+        let tau = if x.omega.abs() >= stick_band {
+            others - self.fs.copysign(x.omega)
+        } else if others.abs() <= self.fs {
+            // Stuck: friction balances everything else.
+            0.0
+        } else {
+            others - self.fs.copysign(others)
+        };
+        PlantState { i_a: di_a, i_b: di_b, theta: x.omega, omega: tau / self.j }
+    }
+
+    /// Karnopp band for an integration step of `h` s: the speed `Fs` alone changes in `h`.
+    pub fn stick_band(&self, h: f64) -> f64 {
+        (self.fs / self.j * h).max(1e-9)
+    }
+
+    /// One RK4 step of `h` s with the voltages held.
+    #[inline]
+    pub fn rk4(&self, x: &PlantState, va: f64, vb: f64, h: f64, band: f64) -> PlantState {
+        let k1 = self.derivative(x, va, vb, band);
+        let k2 = self.derivative(&axpy(x, 0.5 * h, &k1), va, vb, band);
+        let k3 = self.derivative(&axpy(x, 0.5 * h, &k2), va, vb, band);
+        let k4 = self.derivative(&axpy(x, h, &k3), va, vb, band);
+        let w = h / 6.0;
+        PlantState {
+            i_a: x.i_a + w * (k1.i_a + 2.0 * k2.i_a + 2.0 * k3.i_a + k4.i_a),
+            i_b: x.i_b + w * (k1.i_b + 2.0 * k2.i_b + 2.0 * k3.i_b + k4.i_b),
+            theta: x.theta + w * (k1.theta + 2.0 * k2.theta + 2.0 * k3.theta + k4.theta),
+            omega: x.omega + w * (k1.omega + 2.0 * k2.omega + 2.0 * k3.omega + k4.omega),
+        }
+    }
+}
+
+#[inline]
+fn axpy(x: &PlantState, a: f64, k: &PlantState) -> PlantState {
+    PlantState {
+        i_a: x.i_a + a * k.i_a,
+        i_b: x.i_b + a * k.i_b,
+        theta: x.theta + a * k.theta,
+        omega: x.omega + a * k.omega,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn patent() -> PlantParams {
+        PlantParams::from_profile(&Profile::preset("patent-motor").unwrap())
+    }
+
+    proptest! {
+        #[test]
+        fn back_emf_power_equals_mechanical_power(
+            ia in -5.0f64..5.0, ib in -5.0f64..5.0, th in -10.0f64..10.0, w in -100.0f64..100.0
+        ) {
+            let p = patent();
+            let x = PlantState { i_a: ia, i_b: ib, theta: th, omega: w };
+            let (ea, eb) = p.back_emf(&x);
+            let pe = ea * ia + eb * ib;
+            let pm = p.motor_torque(&x) * w;
+            prop_assert!((pe - pm).abs() <= 1e-9 * (1.0 + pm.abs()));
+        }
+
+        #[test]
+        fn detent_torque_is_minus_the_gradient_of_its_energy(th in -1.0f64..1.0) {
+            let p = patent();
+            let h = 1e-7;
+            let grad = (p.detent_energy(th + h) - p.detent_energy(th - h)) / (2.0 * h);
+            let (s, c) = (p.nr * th).sin_cos();
+            prop_assert!((-p.detent_series(s, c) + grad).abs() < 1e-6);
+        }
+    }
+
+    /// Energy balance over a run: what the voltages put in equals the magnetic, kinetic
+    /// and detent energy gained plus the copper and viscous losses (no Coulomb friction,
+    /// whose stick phases are not smooth).
+    #[test]
+    fn energy_is_conserved_over_a_driven_run() {
+        let mut p = patent();
+        p.fs = 0.0;
+        let h = 5e-6;
+        let band = p.stick_band(h);
+        let mut x = PlantState::default();
+        let energy = |x: &PlantState| {
+            0.5 * p.l * (x.i_a * x.i_a + x.i_b * x.i_b) + 0.5 * p.j * x.omega * x.omega + p.detent_energy(x.theta)
+        };
+        let e0 = energy(&x);
+        let (mut e_in, mut e_loss) = (0.0, 0.0);
+        for n in 0..40_000 {
+            // A rotating voltage vector drags the rotor along through its resonances.
+            let t = n as f64 * h;
+            let ph = 2.0 * t * 50.0 * 10.0 * t.min(0.1);
+            let (va, vb) = (3.0 * ph.cos(), 3.0 * ph.sin());
+            let pin = |x: &PlantState| va * x.i_a + vb * x.i_b;
+            let ploss = |x: &PlantState| p.r * (x.i_a * x.i_a + x.i_b * x.i_b) + p.d * x.omega * x.omega;
+            let xn = p.rk4(&x, va, vb, h, band);
+            // Simpson over the step with the midpoint from an RK4 half step.
+            let xm = p.rk4(&x, va, vb, 0.5 * h, band);
+            e_in += h / 6.0 * (pin(&x) + 4.0 * pin(&xm) + pin(&xn));
+            e_loss += h / 6.0 * (ploss(&x) + 4.0 * ploss(&xm) + ploss(&xn));
+            x = xn;
+        }
+        assert!(x.omega.abs() > 1.0, "the rotor moved: {x:?}");
+        let gained = energy(&x) - e0;
+        let err = e_in - e_loss - gained;
+        assert!(err.abs() < 1e-6 * e_in.abs(), "in {e_in} loss {e_loss} gained {gained} err {err}");
+    }
+
+    #[test]
+    fn coulomb_friction_holds_a_rotor_below_breakaway() {
+        let mut p = patent();
+        p.detent.clear();
+        // Windings decoupled: at zero volts they would be shorted and brake at Km²/R·ω.
+        p.km = 0.0;
+        // Coulomb friction alone.
+        p.d = 0.0;
+        let h = 2.5e-5;
+        let band = p.stick_band(h);
+        // A load torque of 0.9 Fs: the rotor never moves.
+        p.load_torque_nm = 0.9 * p.fs;
+        let mut x = PlantState::default();
+        for _ in 0..10_000 {
+            x = p.rk4(&x, 0.0, 0.0, h, band);
+        }
+        assert!(x.theta.abs() < 1e-9 && x.omega.abs() < 1e-9, "{x:?}");
+        // 1.1 Fs: it accelerates at 0.1 Fs / J.
+        p.load_torque_nm = 1.1 * p.fs;
+        let mut x = PlantState::default();
+        for _ in 0..4_000 {
+            x = p.rk4(&x, 0.0, 0.0, h, band);
+        }
+        let t = 4_000.0 * h;
+        let want = 0.1 * p.fs / p.j * t;
+        assert!((x.omega - want).abs() < 0.02 * want + band, "{} vs {want}", x.omega);
+    }
+
+    #[test]
+    fn rk4_converges_at_fourth_order() {
+        // Smooth dynamics only: Coulomb friction's kink would cap the order.
+        let mut p = patent();
+        p.fs = 0.0;
+        let run = |h: f64| {
+            let band = p.stick_band(1e-9);
+            let mut x = PlantState { i_a: 1.9, ..Default::default() };
+            let n = (0.01 / h).round() as usize;
+            for _ in 0..n {
+                x = p.rk4(&x, 1.0, 2.0, h, band);
+            }
+            x.theta
+        };
+        let (a, b, c) = (run(1e-4), run(5e-5), run(2.5e-5));
+        let ratio = (a - b) / (b - c);
+        assert!(ratio > 12.0 && ratio < 20.0, "order ratio {ratio}");
+    }
+}

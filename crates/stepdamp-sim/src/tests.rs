@@ -1,0 +1,1 @@
+//! Physics tests of the closed loop against theory.

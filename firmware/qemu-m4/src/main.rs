@@ -1,0 +1,213 @@
+//! Runs the `stepdamp-core` controller on a Cortex-M4F (QEMU `mps2-an386`) against a tiny
+//! deterministic `f32` plant and prints a golden trace over semihosting.
+//!
+//! Plant: each winding is an exact first-order RL discretisation driven by the leg duties
+//! (through [`Topology::winding_voltages_per_vdc`]) minus the back-EMF of a rigid rotor
+//! that follows the command exactly; the encoder count is that rotor's angle quantised.
+//!
+//! Output: one line every [`PRINT_EVERY`] periods (leg duties and the i_q command to five
+//! significant digits), the periods around an injected NaN current sample, and a checksum
+//! (FNV-1a over the bits of every period's duties and i_q command). `run-golden.sh` diffs
+//! it against `golden.txt`. Exits QEMU with success, or failure on any broken invariant.
+#![no_std]
+#![no_main]
+
+use core::panic::PanicInfo;
+
+use cortex_m_rt::{ExceptionFrame, entry, exception};
+use cortex_m_semihosting::{debug, hprintln};
+use stepdamp_core::{
+    Config, DriveSettings, Harmonic, LegDuties, Measurement, Mode, MotorModel, Params, Position, ServoGains, State,
+    Topology, step,
+};
+
+/// Periods between printed lines.
+const PRINT_EVERY: u32 = 250;
+/// Periods per phase.
+const PERIODS: u32 = 3000;
+/// Open-loop period whose current sample is NaN.
+const NAN_AT: u32 = 1500;
+
+const DETENT: [Harmonic; 3] = [
+    Harmonic { order: 4, amplitude_nm: 0.02, phase_rad: 0.0 },
+    Harmonic { order: 2, amplitude_nm: 0.012, phase_rad: 0.7 },
+    Harmonic { order: 1, amplitude_nm: 0.008, phase_rad: -1.1 },
+];
+
+const KM: f32 = 0.3;
+const NR: u16 = 50;
+const R: f32 = 0.9;
+const L: f32 = 2.5e-3;
+const VDC: f32 = 48.0;
+const CPR: u32 = 4000;
+
+/// The `patent-motor` configuration in the given mode, with detent compensation on.
+fn patent_motor(mode: Mode) -> Params<'static> {
+    Params {
+        motor: MotorModel {
+            km_nm_per_a: KM,
+            pole_pairs: NR,
+            resistance_ohm: R,
+            inductance_h: L,
+            coulomb_friction_nm: 0.01,
+            detent: &DETENT,
+        },
+        drive: DriveSettings {
+            bus_voltage_v: VDC,
+            pwm_hz: 20_000.0,
+            holding_current_a: 1.9,
+            current_limit_a: 3.0,
+            current_loop_bandwidth_hz: 1500.0,
+            topology: Topology::ThreeLeg,
+        },
+        encoder_counts_per_rev: CPR,
+        servo: ServoGains::for_bandwidth(4.0e-5, 50.0, 300.0),
+        mode,
+        compensation: true,
+    }
+}
+
+/// Two RL windings with back-EMF from a rotor that follows the command exactly.
+struct Plant {
+    i_a: f32,
+    i_b: f32,
+    /// `exp(−R Ts / L)`.
+    decay: f32,
+    /// `(1 − decay) / R`: the current a constant voltage adds over one period, per volt.
+    gain: f32,
+}
+
+impl Plant {
+    fn new(ts: f32) -> Self {
+        let decay = libm::expf(-R * ts / L);
+        Plant { i_a: 0.0, i_b: 0.0, decay, gain: (1.0 - decay) / R }
+    }
+
+    /// Applies `duties` for one period with the rotor at `theta` turning at `omega` rad/s.
+    fn advance(&mut self, topology: Topology, duties: &LegDuties, theta: Position, omega: f32) {
+        let (ua, ub) = topology.winding_voltages_per_vdc(duties);
+        let (s, c) = libm::sincosf(theta.electrical_angle_rad());
+        // Torque Km(−i_a sin θe + i_b cos θe), so by power balance e = Km ω (−sin θe, cos θe).
+        let e_a = -KM * omega * s;
+        let e_b = KM * omega * c;
+        self.i_a = self.decay * self.i_a + self.gain * (ua * VDC - e_a);
+        self.i_b = self.decay * self.i_b + self.gain * (ub * VDC - e_b);
+    }
+}
+
+/// Raw encoder counter of a rotor at `theta` (floor to whole counts, wrapping like a timer).
+fn encoder_count(theta: Position) -> u32 {
+    let units_per_rev = i128::from(NR) << 32;
+    (i128::from(theta.0) * i128::from(CPR)).div_euclid(units_per_rev) as u32
+}
+
+/// FNV-1a over 32-bit words.
+struct Fnv(u32);
+
+impl Fnv {
+    fn word(&mut self, w: u32) {
+        for b in w.to_le_bytes() {
+            self.0 = (self.0 ^ u32::from(b)).wrapping_mul(0x0100_0193);
+        }
+    }
+}
+
+fn fail(what: &str, n: u32) -> ! {
+    hprintln!("FAIL: {} at period {}", what, n);
+    debug::exit(debug::EXIT_FAILURE);
+    loop {
+        cortex_m::asm::bkpt();
+    }
+}
+
+/// Runs one phase of [`PERIODS`] periods; `speed(n)` gives the command in rad/s.
+fn run(tag: &str, mode: Mode, speed: fn(u32) -> f32, hash: &mut Fnv) -> u32 {
+    let cfg = match Config::new(&patent_motor(mode)) {
+        Ok(c) => c,
+        Err(_) => fail("Config::new", 0),
+    };
+    let topology = cfg.topology();
+    let mut st = State::default();
+    let mut plant = Plant::new(cfg.period_s());
+    // The rotor: at the commanded position of each period.
+    let mut theta = st.position_command();
+    for n in 0..PERIODS {
+        st.command_speed(&cfg, speed(n));
+        let nan = mode == Mode::OpenLoop && n == NAN_AT;
+        let m = Measurement {
+            i_a_a: if nan { f32::NAN } else { plant.i_a },
+            i_b_a: plant.i_b,
+            encoder_count: encoder_count(theta),
+        };
+        let out = step(&cfg, &mut st, &m);
+        let d = out.duties.0;
+        let iq = out.signals.i_dq_cmd.q;
+        if !d.iter().all(|x| (0.0..=1.0).contains(x)) || !iq.is_finite() {
+            fail("duty out of [0, 1] or non-finite i_q command", n);
+        }
+        for x in [d[0], d[1], d[2], iq] {
+            hash.word(x.to_bits());
+        }
+        if n % PRINT_EVERY == 0 || (mode == Mode::OpenLoop && (NAN_AT..NAN_AT + 2).contains(&n)) {
+            hprintln!(
+                "{} {:4} d=[{:.4e} {:.4e} {:.4e}] iq={:11.4e} faults={}{}",
+                tag,
+                n,
+                d[0],
+                d[1],
+                d[2],
+                iq,
+                st.sample_faults,
+                if nan { " <- NaN i_a sample" } else { "" }
+            );
+        }
+        plant.advance(topology, &out.duties, theta, st.speed_command_rad_s());
+        theta = st.position_command();
+    }
+    hprintln!("{} end i_a={:.4e} i_b={:.4e} faults={}", tag, plant.i_a, plant.i_b, st.sample_faults);
+    if mode == Mode::OpenLoop && st.sample_faults != 1 {
+        fail("expected exactly one sample fault", PERIODS);
+    }
+    st.sample_faults
+}
+
+#[entry]
+fn main() -> ! {
+    hprintln!("stepdamp-core on Cortex-M4F: patent-motor, three legs, {} periods per phase", PERIODS);
+    let mut hash = Fnv(0x811c_9dc5);
+    let mut faults = run("ol", Mode::OpenLoop, |_| 8.4, &mut hash);
+    // Servo: forward, stop, reverse (the friction feed-forward follows the sign).
+    faults += run(
+        "sv",
+        Mode::Servo,
+        |n| match n {
+            0..1000 => 8.4,
+            1000..2000 => 0.0,
+            _ => -8.4,
+        },
+        &mut hash,
+    );
+    hprintln!("checksum fnv1a=0x{:08x} periods={} faults={}", hash.0, 2 * PERIODS, faults);
+    debug::exit(debug::EXIT_SUCCESS);
+    loop {
+        cortex_m::asm::bkpt();
+    }
+}
+
+#[panic_handler]
+fn panic(info: &PanicInfo) -> ! {
+    hprintln!("panic: {}", info);
+    debug::exit(debug::EXIT_FAILURE);
+    loop {
+        cortex_m::asm::bkpt();
+    }
+}
+
+#[exception]
+unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
+    hprintln!("hard fault: {:?}", ef);
+    debug::exit(debug::EXIT_FAILURE);
+    loop {
+        cortex_m::asm::bkpt();
+    }
+}
