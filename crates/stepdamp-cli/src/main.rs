@@ -1,0 +1,59 @@
+//! `stepdamp`: sweeps, simulations, identification and motor profiles.
+
+mod common;
+mod identify;
+mod motor;
+mod plot;
+mod simulate;
+mod sweep;
+
+use clap::{Parser, Subcommand};
+
+/// Model-based active damping of hybrid stepper motors (US 7,733,051 and beyond).
+#[derive(Parser, Debug)]
+#[command(name = "stepdamp", version, about, propagate_version = true)]
+struct Cli {
+    /// No progress bars.
+    #[arg(long, short, global = true)]
+    quiet: bool,
+    #[command(subcommand)]
+    command: Command,
+}
+
+/// Options every subcommand sees.
+#[derive(Debug, Clone, Copy)]
+pub struct Global {
+    /// No progress bars.
+    pub quiet: bool,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Sweep velocity error against speed, with and without compensation (figs. 4–7).
+    Sweep(sweep::SweepArgs),
+    /// Simulate one constant-speed run; optionally write its run log.
+    Simulate(simulate::SimulateArgs),
+    /// Print the natural frequency and the resonance speeds of a motor.
+    Resonance(motor::ResonanceArgs),
+    /// Show, check or list motor profiles.
+    #[command(subcommand)]
+    Motor(motor::MotorCommand),
+    /// Identify detent harmonics and friction from servo-mode logs.
+    Identify(identify::IdentifyArgs),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let global = Global { quiet: cli.quiet };
+    let result = match cli.command {
+        Command::Sweep(a) => sweep::run(a, &global),
+        Command::Simulate(a) => simulate::run(a, &global),
+        Command::Resonance(a) => motor::resonance(a, &global),
+        Command::Motor(c) => motor::run(c, &global),
+        Command::Identify(a) => identify::run(a, &global),
+    };
+    if let Err(e) = result {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}

@@ -1,0 +1,152 @@
+//! Plots: velocity error against speed (the analogue of the patent's figs. 4–7).
+
+use anyhow::{Result, anyhow};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::path::Path;
+use std::sync::Once;
+use stepdamp_sim::SweepRow;
+
+static FONT: Once = Once::new();
+
+/// Registers the embedded DejaVu Sans as "sans-serif" (bitmap text needs a font file;
+/// embedding it means no system font library is needed).
+pub fn register_font() {
+    FONT.call_once(|| {
+        // The font is valid: the embedded bytes are tested.
+        let _ =
+            plotters::style::register_font("sans-serif", FontStyle::Normal, include_bytes!("../assets/DejaVuSans.ttf"));
+    });
+}
+
+/// A vertical marker: x position and label.
+pub struct Marker {
+    /// Speed in rad/s.
+    pub x: f64,
+    /// Label.
+    pub label: String,
+}
+
+const PALETTE: [RGBColor; 4] =
+    [RGBColor(200, 40, 40), RGBColor(30, 90, 200), RGBColor(20, 150, 60), RGBColor(150, 60, 170)];
+
+/// Writes the sweep plot as SVG and PNG.
+pub fn sweep_plot(rows: &[SweepRow], markers: &[Marker], title: &str, svg: &Path, png: &Path) -> Result<()> {
+    register_font();
+    {
+        let root = SVGBackend::new(svg, (1000, 700)).into_drawing_area();
+        draw_sweep(&root, rows, markers, title)?;
+        root.present().map_err(|e| anyhow!("{}: {e}", svg.display()))?;
+    }
+    let root = BitMapBackend::new(png, (1000, 700)).into_drawing_area();
+    draw_sweep(&root, rows, markers, title)?;
+    root.present().map_err(|e| anyhow!("{}: {e}", png.display()))?;
+    Ok(())
+}
+
+fn draw_sweep<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    rows: &[SweepRow],
+    markers: &[Marker],
+    title: &str,
+) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow!("plot: {e}");
+    root.fill(&WHITE).map_err(err)?;
+    let root = root.titled(title, ("sans-serif", 22)).map_err(err)?;
+    let mut modes: Vec<&str> = Vec::new();
+    let mut comps: Vec<&str> = Vec::new();
+    for r in rows {
+        if !modes.contains(&r.mode) {
+            modes.push(r.mode);
+        }
+        if !comps.contains(&r.compensation) {
+            comps.push(r.compensation);
+        }
+    }
+    let panels = root.split_evenly((modes.len().max(1), 1));
+    let (x0, x1) = rows
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), r| (a.min(r.speed_cmd_rad_s), b.max(r.speed_cmd_rad_s)));
+    let finite = |v: f64| v.is_finite() && v > 0.0;
+    let (y0, y1) = rows
+        .iter()
+        .map(|r| r.vel_err_pp_rad_s)
+        .filter(|&v| finite(v))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+    if !(x0.is_finite() && y0.is_finite()) {
+        return Err(anyhow!("plot: no finite data"));
+    }
+    let (y0, y1) = (y0 / 2.0, y1 * 2.0);
+    let xpad = 0.02 * (x1 - x0).max(1e-9);
+    for (panel, mode) in panels.iter().zip(&modes) {
+        let mut chart = ChartBuilder::on(panel)
+            .caption(format!("{mode}: velocity error, peak to peak"), ("sans-serif", 18))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(70)
+            .build_cartesian_2d(x0 - xpad..x1 + xpad, (y0..y1).log_scale())
+            .map_err(err)?;
+        chart
+            .configure_mesh()
+            .x_desc("commanded speed (rad/s)")
+            .y_desc("ω − ω_cmd peak-to-peak (rad/s)")
+            .label_style(("sans-serif", 14))
+            .draw()
+            .map_err(err)?;
+        for m in markers {
+            chart
+                .draw_series(DashedLineSeries::new(vec![(m.x, y0), (m.x, y1)], 6, 4, BLACK.mix(0.5).stroke_width(1)))
+                .map_err(err)?;
+            chart
+                .draw_series(std::iter::once(Text::new(m.label.clone(), (m.x, y1 / 1.6), ("sans-serif", 13))))
+                .map_err(err)?;
+        }
+        for (ci, comp) in comps.iter().enumerate() {
+            let color = PALETTE[ci % PALETTE.len()];
+            let pts: Vec<(f64, f64)> = rows
+                .iter()
+                .filter(|r| r.mode == *mode && r.compensation == *comp && finite(r.vel_err_pp_rad_s))
+                .map(|r| (r.speed_cmd_rad_s, r.vel_err_pp_rad_s))
+                .collect();
+            chart
+                .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
+                .map_err(err)?
+                .label(format!("compensation {comp}"))
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+            chart.draw_series(pts.iter().map(|&p| Circle::new(p, 2, color.filled()))).map_err(err)?;
+            let lost: Vec<(f64, f64)> = rows
+                .iter()
+                .filter(|r| r.mode == *mode && r.compensation == *comp && r.lost_sync && finite(r.vel_err_pp_rad_s))
+                .map(|r| (r.speed_cmd_rad_s, r.vel_err_pp_rad_s))
+                .collect();
+            chart.draw_series(lost.iter().map(|&p| Cross::new(p, 6, color.stroke_width(2)))).map_err(err)?;
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK.mix(0.3))
+            .label_font(("sans-serif", 14))
+            .draw()
+            .map_err(err)?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn embedded_font_is_a_valid_font() {
+        assert!(
+            plotters::style::register_font(
+                "test-font",
+                plotters::style::FontStyle::Normal,
+                include_bytes!("../assets/DejaVuSans.ttf")
+            )
+            .is_ok()
+        );
+    }
+}
