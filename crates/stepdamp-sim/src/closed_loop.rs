@@ -216,6 +216,13 @@ impl ClosedLoop {
         &self.x
     }
 
+    /// Moves the rotor to `theta_rad` at `omega_rad_s` (an impulse, for ring-down tests);
+    /// currents and the controller are untouched.
+    pub fn kick_rotor(&mut self, theta_rad: f64, omega_rad_s: f64) {
+        self.x.theta = theta_rad;
+        self.x.omega = omega_rad_s;
+    }
+
     /// The plant parameters.
     pub fn plant(&self) -> &PlantParams {
         &self.plant
