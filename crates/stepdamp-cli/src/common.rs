@@ -30,18 +30,21 @@ pub fn parse_modes(s: &str) -> Result<Vec<Mode>> {
     Ok(out)
 }
 
-/// Parses a comma list of `off`, `patent` (alias `on`), or `both` (= `off,patent`).
+/// Parses a comma list of `off`, `patent` (alias `on`), `estimated`, or `both` (= `off,patent`).
 pub fn parse_compensations(s: &str) -> Result<Vec<Compensation>> {
     let mut out = Vec::new();
     for part in s.split(',').map(str::trim) {
         match part {
             "off" => push_unique(&mut out, Compensation::Off),
             "patent" | "on" => push_unique(&mut out, Compensation::Patent),
+            "estimated" => push_unique(&mut out, Compensation::Estimated),
             "both" => {
                 push_unique(&mut out, Compensation::Off);
                 push_unique(&mut out, Compensation::Patent);
             }
-            _ => bail!("--compensation '{part}': expected off, patent (or on), or both; a comma list is allowed"),
+            _ => bail!(
+                "--compensation '{part}': expected off, patent (or on), estimated, or both (= off,patent); a comma list is allowed"
+            ),
         }
     }
     Ok(out)

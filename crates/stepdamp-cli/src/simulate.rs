@@ -28,6 +28,9 @@ pub struct SimulateArgs {
     /// Simulated time in s.
     #[arg(long, default_value_t = 1.5)]
     pub duration: f64,
+    /// Standstill time with the holding current on before the ramp, s.
+    #[arg(long, default_value_t = 0.05)]
+    pub dwell: f64,
     /// Ramp time from rest to the speed in s.
     #[arg(long, default_value_t = 0.1)]
     pub ramp: f64,
@@ -63,8 +66,9 @@ pub fn run(a: SimulateArgs, _g: &Global) -> Result<()> {
     if !(a.duration.is_finite() && a.duration > 0.0 && a.duration <= 1000.0) {
         bail!("--duration {}: must be in (0, 1000] s", a.duration);
     }
-    if !(a.ramp.is_finite() && a.ramp >= 0.0 && a.ramp < a.duration) {
-        bail!("--ramp {}: must be ≥ 0 and shorter than --duration {}", a.ramp, a.duration);
+    if !(a.ramp.is_finite() && a.ramp >= 0.0 && a.dwell.is_finite() && a.dwell >= 0.0 && a.dwell + a.ramp < a.duration)
+    {
+        bail!("--dwell {} + --ramp {}: must be ≥ 0 and shorter than --duration {}", a.dwell, a.ramp, a.duration);
     }
     if let Some(path) = &a.log {
         let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(std::path::Path::new("."));
@@ -79,8 +83,13 @@ pub fn run(a: SimulateArgs, _g: &Global) -> Result<()> {
         ..SimOptions::default()
     };
     let mut lp = ClosedLoop::new(&motor, &controller, *mode, *comp, &opts)?;
-    let spec =
-        RunSpec { speed_rad_s: a.speed, ramp_s: a.ramp, duration_s: a.duration, window_s: (a.duration / 3.0).min(0.5) };
+    let spec = RunSpec {
+        speed_rad_s: a.speed,
+        dwell_s: a.dwell,
+        ramp_s: a.ramp,
+        duration_s: a.duration,
+        window_s: (a.duration / 3.0).min(0.5),
+    };
     let pwm = motor.drive.pwm_hz;
     let nr = motor.motor.pole_pairs;
     let mut rows: Vec<LogRow> = Vec::new();
@@ -97,7 +106,7 @@ pub fn run(a: SimulateArgs, _g: &Global) -> Result<()> {
         "{} {} compensation {} at {} rad/s: velocity error rms {:.4} rad/s, pp {:.4} rad/s, max load angle {:.3} electrical rad{}",
         motor.name,
         stepdamp_sim::mode_name(*mode),
-        comp.name(),
+        stepdamp_sim::compensation_name(*comp),
         a.speed,
         m.vel_err_rms_rad_s,
         m.vel_err_pp_rad_s,

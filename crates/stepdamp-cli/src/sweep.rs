@@ -22,7 +22,7 @@ pub struct SweepArgs {
     /// open-loop, servo or both.
     #[arg(long, default_value = "both")]
     pub mode: String,
-    /// Comma list of off, patent (alias on); both = off,patent.
+    /// Comma list of off, patent (alias on), estimated; both = off,patent.
     #[arg(long, default_value = "both")]
     pub compensation: String,
     /// Lowest speed in rad/s.
@@ -34,7 +34,8 @@ pub struct SweepArgs {
     /// Number of speeds.
     #[arg(long, default_value_t = 60)]
     pub points: usize,
-    /// Simulated time per run in s (0.1 s ramp, error measured over the last ≤ 0.5 s).
+    /// Simulated time per run in s (50 ms standstill, 0.1 s ramp, error measured over the
+    /// last ≤ 0.5 s).
     #[arg(long, default_value_t = 1.5)]
     pub duration: f64,
     /// Constant load torque in N·m opposing the direction of travel.
@@ -88,7 +89,7 @@ pub fn spec_of(a: &SweepArgs) -> Result<SweepSpec> {
         speeds_rad_s: linear_grid(a.from, a.to, a.points),
         modes: parse_modes(&a.mode)?,
         compensations: parse_compensations(&a.compensation)?,
-        run: RunSpec { speed_rad_s: a.from, ramp_s: 0.1, duration_s: a.duration, window_s: window },
+        run: RunSpec { speed_rad_s: a.from, dwell_s: 0.05, ramp_s: 0.1, duration_s: a.duration, window_s: window },
         options: SimOptions {
             substeps: a.substeps,
             current_noise_a: a.current_noise,

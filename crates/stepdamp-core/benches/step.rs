@@ -28,11 +28,12 @@ fn config(mode: Mode) -> Config {
             current_limit_a: 3.0,
             current_loop_bandwidth_hz: 1500.0,
             topology: Topology::ThreeLeg,
+            computation_delay_periods: 1,
         },
         encoder_counts_per_rev: 4000,
         servo: ServoGains::for_bandwidth(4.0e-5, 50.0, 300.0),
         mode,
-        compensation: true,
+        compensation: Compensation::Patent,
     })
     .expect("valid preset")
 }

@@ -96,20 +96,24 @@ impl HarmonicSeries {
         self.eval_sin_cos(s, c)
     }
 
-    /// The series and its derivative with respect to `θe` at `(sin θe, cos θe)`:
-    /// `(Σ a_k sin kθe + b_k cos kθe, Σ k (a_k cos kθe − b_k sin kθe))`, in one pass.
+    /// The series and its first two derivatives with respect to `θe` at
+    /// `(sin θe, cos θe)`, in one pass: `S = Σ a_k sin kθe + b_k cos kθe`,
+    /// `S' = Σ k (a_k cos kθe − b_k sin kθe)`, `S'' = −Σ k² (a_k sin kθe + b_k cos kθe)`.
     #[inline]
-    pub fn eval_with_slope(&self, s1: f32, c1: f32) -> (f32, f32) {
+    pub fn eval_with_derivatives(&self, s1: f32, c1: f32) -> (f32, f32, f32) {
         let (mut sk, mut ck) = (s1, c1);
-        let (mut sum, mut slope) = (0.0, 0.0);
+        let (mut sum, mut slope, mut curv) = (0.0, 0.0, 0.0);
         for k in 0..self.max_order.min(MAX_HARMONIC_ORDER) {
-            sum += self.sin_coef[k] * sk + self.cos_coef[k] * ck;
-            slope += (k as f32 + 1.0) * (self.sin_coef[k] * ck - self.cos_coef[k] * sk);
+            let kf = k as f32 + 1.0;
+            let term = self.sin_coef[k] * sk + self.cos_coef[k] * ck;
+            sum += term;
+            slope += kf * (self.sin_coef[k] * ck - self.cos_coef[k] * sk);
+            curv -= kf * kf * term;
             let next_s = sk * c1 + ck * s1;
             ck = ck * c1 - sk * s1;
             sk = next_s;
         }
-        (sum, slope)
+        (sum, slope, curv)
     }
 }
 
@@ -174,9 +178,11 @@ mod tests {
             let h = 1e-3;
             let fd = (s.eval(th + h) - s.eval(th - h)) / (2.0 * h);
             let (sn, cs) = libm::sincosf(th);
-            let (v, slope) = s.eval_with_slope(sn, cs);
+            let (v, slope, curv) = s.eval_with_derivatives(sn, cs);
             prop_assert!((slope - fd).abs() < 2e-4);
             prop_assert!((v - s.eval(th)).abs() < 1e-6);
+            let fd2 = (s.eval(th + h) - 2.0 * s.eval(th) + s.eval(th - h)) / (h * h);
+            prop_assert!((curv - fd2).abs() < 2e-2, "{curv} {fd2}");
         }
     }
 }

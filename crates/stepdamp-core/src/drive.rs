@@ -1,9 +1,10 @@
 //! One control period of the drive: sample → Park → law → PI → inverse Park → modulator.
 
-use crate::angle::{MicrostepAccumulator, Position};
+use crate::angle::{MicrostepAccumulator, Position, UNITS_PER_ELECTRICAL_REV};
 use crate::config::{Config, Mode};
 use crate::encoder::EncoderState;
 use crate::modulator::LegDuties;
+use crate::observer::ObserverState;
 use crate::park::{Ab, Dq, inverse_park, park};
 
 /// What the drive samples at the start of a period.
@@ -28,6 +29,8 @@ pub struct State {
     integral_q_v: f32,
     position_integral_rad_s: f32,
     last_current: Ab,
+    /// Load-angle observer (open loop, estimated compensation).
+    pub observer: ObserverState,
     /// Periods whose current sample was rejected (non-finite or beyond 100× the current
     /// limit); the previous good sample was used instead.
     pub sample_faults: u32,
@@ -107,13 +110,35 @@ pub fn step(cfg: &Config, st: &mut State, m: &Measurement) -> Output {
     };
     let (sin, cos) = libm::sincosf(theta_ctl.electrical_angle_rad());
     let i_dq = park(i_ab, sin, cos);
-    // The closed current loop is first order, `1/(1 + s/ωc)`: command the compensation
-    // through its inverse along the commanded electrical speed, `S + (1/ωc)·ωe·dS/dθe`,
-    // so the current itself lands on the detent at every harmonic order. Applied where
-    // the angle is the rotor's own (servo); zero in the patent's open loop.
-    let (series, slope) = cfg.compensation.eval_with_slope(sin, cos);
+    // Where the compensation is evaluated: θ_cmd (patent, open loop), θ_fb (servo), or the
+    // observer's rotor angle θc − δ̂ (estimated, open loop).
     let omega_e = st.speed_cmd_rad_s * f32::from(cfg.pole_pairs);
-    let comp_a = series + cfg.compensation_lead_s * omega_e * slope;
+    let (cs, cc, gain) = match &cfg.observer {
+        Some(obs) => {
+            let dtheta = st.command.increment as f32 * (core::f32::consts::TAU / UNITS_PER_ELECTRICAL_REV as f32);
+            let dir = if st.speed_cmd_rad_s > 0.0 {
+                1.0
+            } else if st.speed_cmd_rad_s < 0.0 {
+                -1.0
+            } else {
+                0.0
+            };
+            let delta = obs.update(&mut st.observer, i_ab, sin, cos, dtheta, dir, st.speed_cmd_rad_s);
+            let (sd, cd) = libm::sincosf(delta);
+            // q of θc is δ̂ off the rotor's q axis: divide by cos δ̂ (bounded); and correct
+            // the configured Km by the back-EMF's measure of it.
+            (sin * cd - cos * sd, cos * cd + sin * sd, obs.km_correction(&st.observer) / cd.max(0.5))
+        }
+        None => (sin, cos, 1.0),
+    };
+    // The closed current loop is `1/(1 + (s/ωc)·e^{s·Td})`: command the compensation
+    // through its inverse along the commanded electrical speed,
+    // `S + (1/ωc)·ωe·(S' + Td·ωe·S'')`, so the current itself lands on the detent at every
+    // harmonic order. Applied where
+    // the angle is the rotor's own (servo, estimated); zero in the patent's open loop.
+    let (series, slope, curv) = cfg.compensation.eval_with_derivatives(cs, cc);
+    let comp_a =
+        gain * (series + cfg.compensation_lead_s * omega_e * (slope + cfg.compensation_lead2_s * omega_e * curv));
 
     let i_dq_cmd = match cfg.mode {
         Mode::OpenLoop => {
@@ -125,14 +150,23 @@ pub fn step(cfg: &Config, st: &mut State, m: &Measurement) -> Output {
 
     // Current loop: PI on d and q, inverse Park, limit the vector on the bus, anti-windup.
     let e = Dq { d: i_dq_cmd.d - i_dq.d, q: i_dq_cmd.q - i_dq.q };
-    let v_unlim = Dq { d: cfg.pi.output(st.integral_d_v, e.d), q: cfg.pi.output(st.integral_q_v, e.q) };
+    // With the observer, the integral gain `Ki = R·ωc` follows the resistance it measured
+    // at standstill, so the PI's zero keeps cancelling the winding pole.
+    let pi = match &cfg.observer {
+        Some(obs) => obs.current_pi(&cfg.pi, &st.observer),
+        None => cfg.pi,
+    };
+    let v_unlim = Dq { d: pi.output(st.integral_d_v, e.d), q: pi.output(st.integral_q_v, e.q) };
     let v_ab_req = inverse_park(v_unlim, sin, cos);
     let modulated = cfg.topology.modulate(v_ab_req, cfg.bus_voltage_v);
     let limited = modulated.scale < 1.0;
     let bound = cfg.integral_bound_v;
-    cfg.pi.commit(&mut st.integral_d_v, e.d, v_unlim.d, limited, bound);
-    cfg.pi.commit(&mut st.integral_q_v, e.q, v_unlim.q, limited, bound);
+    pi.commit(&mut st.integral_d_v, e.d, v_unlim.d, limited, bound);
+    pi.commit(&mut st.integral_q_v, e.q, v_unlim.q, limited, bound);
     let v_ab = Ab { a: v_ab_req.a * modulated.scale, b: v_ab_req.b * modulated.scale };
+    if let Some(obs) = &cfg.observer {
+        obs.record(&mut st.observer, v_ab, i_dq_cmd);
+    }
 
     st.command.advance();
     Output {

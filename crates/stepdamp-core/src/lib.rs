@@ -35,12 +35,12 @@
 //!     drive: DriveSettings {
 //!         bus_voltage_v: 48.0, pwm_hz: 20_000.0, holding_current_a: 1.9,
 //!         current_limit_a: 3.0, current_loop_bandwidth_hz: 1500.0,
-//!         topology: Topology::ThreeLeg,
+//!         topology: Topology::ThreeLeg, computation_delay_periods: 1,
 //!     },
 //!     encoder_counts_per_rev: 4000,
 //!     servo: ServoGains::for_bandwidth(4.0e-5, 50.0, 300.0),
 //!     mode: Mode::OpenLoop,
-//!     compensation: true,
+//!     compensation: Compensation::Patent,
 //! };
 //! let cfg = Config::new(&params)?;
 //! let mut st = State::default();
@@ -59,11 +59,12 @@ pub mod drive;
 pub mod encoder;
 pub mod lowpass;
 pub mod modulator;
+pub mod observer;
 pub mod park;
 pub mod pi;
 
 pub use angle::{MicrostepAccumulator, Position};
-pub use config::{Config, ConfigError, DriveSettings, Mode, MotorModel, Params, ServoGains};
+pub use config::{Compensation, Config, ConfigError, DriveSettings, Mode, MotorModel, Params, ServoGains};
 pub use detent::{Harmonic, HarmonicSeries, MAX_HARMONIC_ORDER};
 pub use drive::{Measurement, Output, Signals, State, step};
 pub use modulator::{LegDuties, Topology};

@@ -9,7 +9,7 @@ const DETENT: [Harmonic; 3] = [
     Harmonic { order: 1, amplitude_nm: 0.008, phase_rad: -1.1 },
 ];
 
-fn params(mode: Mode, compensation: bool) -> Params<'static> {
+fn params(mode: Mode, compensation: Compensation) -> Params<'static> {
     Params {
         motor: MotorModel {
             km_nm_per_a: 0.3,
@@ -26,6 +26,7 @@ fn params(mode: Mode, compensation: bool) -> Params<'static> {
             current_limit_a: 3.0,
             current_loop_bandwidth_hz: 1500.0,
             topology: Topology::ThreeLeg,
+            computation_delay_periods: 1,
         },
         encoder_counts_per_rev: 4000,
         servo: ServoGains::for_bandwidth(4.0e-5, 50.0, 300.0),
@@ -36,30 +37,30 @@ fn params(mode: Mode, compensation: bool) -> Params<'static> {
 
 #[test]
 fn config_rejects_nonsense_with_the_field_named() {
-    let mut p = params(Mode::OpenLoop, true);
+    let mut p = params(Mode::OpenLoop, Compensation::Patent);
     p.motor.km_nm_per_a = 0.0;
     let e = Config::new(&p).unwrap_err();
     assert!(matches!(e, ConfigError::Invalid { field: "motor.km_nm_per_a", .. }), "{e:?}");
-    let mut p = params(Mode::OpenLoop, true);
+    let mut p = params(Mode::OpenLoop, Compensation::Patent);
     p.drive.bus_voltage_v = -48.0;
     assert!(matches!(Config::new(&p), Err(ConfigError::Invalid { field: "drive.bus_voltage_v", .. })));
-    let mut p = params(Mode::OpenLoop, true);
+    let mut p = params(Mode::OpenLoop, Compensation::Patent);
     p.drive.holding_current_a = 4.0;
     assert!(matches!(Config::new(&p), Err(ConfigError::Invalid { field: "drive.holding_current_a", .. })));
-    let mut p = params(Mode::OpenLoop, true);
+    let mut p = params(Mode::OpenLoop, Compensation::Patent);
     p.motor.inductance_h = f32::NAN;
     assert!(matches!(Config::new(&p), Err(ConfigError::Invalid { field: "motor.inductance_h", .. })));
-    let mut p = params(Mode::OpenLoop, true);
+    let mut p = params(Mode::OpenLoop, Compensation::Patent);
     p.drive.current_loop_bandwidth_hz = 6000.0;
     assert!(Config::new(&p).is_err());
-    let mut p = params(Mode::OpenLoop, true);
+    let mut p = params(Mode::OpenLoop, Compensation::Patent);
     p.encoder_counts_per_rev = 0;
     assert!(Config::new(&p).is_err());
 }
 
 #[test]
 fn open_loop_commands_holding_current_and_compensation_at_theta_cmd() {
-    let cfg = Config::new(&params(Mode::OpenLoop, true)).unwrap();
+    let cfg = Config::new(&params(Mode::OpenLoop, Compensation::Patent)).unwrap();
     let series = HarmonicSeries::new(&DETENT, 1.0 / 0.3).unwrap();
     let mut st = State::default();
     st.command_speed(&cfg, 5.0);
@@ -70,7 +71,7 @@ fn open_loop_commands_holding_current_and_compensation_at_theta_cmd() {
         assert!((out.signals.i_dq_cmd.q - series.eval(th)).abs() < 1e-5);
     }
     // Without compensation the q command is zero.
-    let cfg = Config::new(&params(Mode::OpenLoop, false)).unwrap();
+    let cfg = Config::new(&params(Mode::OpenLoop, Compensation::Off)).unwrap();
     let mut st = State::default();
     st.command_speed(&cfg, 5.0);
     for _ in 0..100 {
@@ -80,7 +81,7 @@ fn open_loop_commands_holding_current_and_compensation_at_theta_cmd() {
 
 #[test]
 fn open_loop_angle_advances_at_the_commanded_speed() {
-    let cfg = Config::new(&params(Mode::OpenLoop, false)).unwrap();
+    let cfg = Config::new(&params(Mode::OpenLoop, Compensation::Off)).unwrap();
     let mut st = State::default();
     st.command_speed(&cfg, 2.0);
     for _ in 0..20_000 {
@@ -92,7 +93,7 @@ fn open_loop_angle_advances_at_the_commanded_speed() {
 
 #[test]
 fn servo_pushes_toward_the_command_and_feeds_friction_forward() {
-    let cfg = Config::new(&params(Mode::Servo, true)).unwrap();
+    let cfg = Config::new(&params(Mode::Servo, Compensation::Patent)).unwrap();
     let mut st = State::default();
     st.command_speed(&cfg, 1.0);
     // Rotor held at 0 while the command moves on: positive q current, d = 0.
@@ -104,7 +105,7 @@ fn servo_pushes_toward_the_command_and_feeds_friction_forward() {
     }
     assert!(last > 0.01 / 0.3, "{last}");
     // Rotor ahead of the command: negative q current.
-    let cfg = Config::new(&params(Mode::Servo, false)).unwrap();
+    let cfg = Config::new(&params(Mode::Servo, Compensation::Off)).unwrap();
     let mut st = State::default();
     let out = step(&cfg, &mut st, &Measurement { encoder_count: 40, ..Default::default() });
     assert!(out.signals.i_dq_cmd.q < 0.0);
@@ -112,7 +113,7 @@ fn servo_pushes_toward_the_command_and_feeds_friction_forward() {
 
 #[test]
 fn servo_current_command_is_clamped_to_the_limit() {
-    let cfg = Config::new(&params(Mode::Servo, true)).unwrap();
+    let cfg = Config::new(&params(Mode::Servo, Compensation::Patent)).unwrap();
     let mut st = State::default();
     // Rotor far behind: half a revolution.
     for _ in 0..1000 {
@@ -124,7 +125,7 @@ fn servo_current_command_is_clamped_to_the_limit() {
 #[test]
 fn a_nan_sample_acts_as_a_repeat_of_the_last_good_sample() {
     for mode in [Mode::OpenLoop, Mode::Servo] {
-        let cfg = Config::new(&params(mode, true)).unwrap();
+        let cfg = Config::new(&params(mode, Compensation::Patent)).unwrap();
         let mut a = State::default();
         let mut b = State::default();
         a.command_speed(&cfg, 3.0);
@@ -155,7 +156,7 @@ proptest! {
         servo in any::<bool>(),
     ) {
         let mode = if servo { Mode::Servo } else { Mode::OpenLoop };
-        let cfg = Config::new(&params(mode, true)).unwrap();
+        let cfg = Config::new(&params(mode, Compensation::Patent)).unwrap();
         let mut st = State::default();
         for (ia, ib, enc, w) in seq {
             st.command_speed(&cfg, w);

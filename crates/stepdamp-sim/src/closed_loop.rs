@@ -3,8 +3,8 @@
 //!
 //! Per period: sample the plant (currents with optional ADC quantisation and seeded
 //! Gaussian noise, encoder count by `floor`); run the core's [`step`]; apply the duties
-//! (after a one-period computation delay, as a real drive that loads the PWM compare
-//! registers for the next period, unless disabled) as average winding voltages
+//! (one period later when the profile's `drive.computation_delay_periods` is 1, the
+//! default, as a real drive that loads the PWM compare registers for the next period) as average winding voltages
 //! `Vdc·(d_α − d_γ)`, `Vdc·(d_β − d_γ)` held over the period (zero-order hold); integrate
 //! the plant with `substeps` RK4 steps.
 
@@ -18,23 +18,14 @@ use stepdamp_core::{
     Signals, State, Topology, step,
 };
 
-/// Which compensation the controller runs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum Compensation {
-    /// No detent compensation (and no friction feed-forward in servo mode).
-    Off,
-    /// The patent's law: compensation at `θ_cmd` (open loop) or `θ_fb` (servo), friction
-    /// feed-forward in servo mode.
-    Patent,
-}
+pub use stepdamp_core::Compensation;
 
-impl Compensation {
-    /// Name in tables and on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            Compensation::Off => "off",
-            Compensation::Patent => "patent",
-        }
+/// Name of a compensation in tables and on the command line.
+pub fn compensation_name(c: Compensation) -> &'static str {
+    match c {
+        Compensation::Off => "off",
+        Compensation::Patent => "patent",
+        Compensation::Estimated => "estimated",
     }
 }
 
@@ -51,8 +42,6 @@ pub fn mode_name(m: Mode) -> &'static str {
 pub struct SimOptions {
     /// RK4 steps per control period (≥ 1).
     pub substeps: u32,
-    /// Apply the duties one period after the sample they were computed from.
-    pub computation_delay: bool,
     /// Standard deviation of the current-sensor noise in A.
     pub current_noise_a: f64,
     /// ADC quantisation step of the current samples in A (0 = none).
@@ -65,14 +54,7 @@ pub struct SimOptions {
 
 impl Default for SimOptions {
     fn default() -> Self {
-        SimOptions {
-            substeps: 2,
-            computation_delay: true,
-            current_noise_a: 0.0,
-            current_lsb_a: 0.0,
-            seed: 1,
-            load_torque_nm: 0.0,
-        }
+        SimOptions { substeps: 2, current_noise_a: 0.0, current_lsb_a: 0.0, seed: 1, load_torque_nm: 0.0 }
     }
 }
 
@@ -116,6 +98,7 @@ pub fn controller_config(p: &Profile, mode: Mode, comp: Compensation) -> Result<
             current_limit_a: p.drive.current_limit_a as f32,
             current_loop_bandwidth_hz: p.drive.current_loop_bandwidth_hz as f32,
             topology: p.drive.topology.into(),
+            computation_delay_periods: p.drive.computation_delay_periods,
         },
         encoder_counts_per_rev: p.encoder.counts_per_rev,
         servo: ServoGains::for_bandwidth(
@@ -124,7 +107,7 @@ pub fn controller_config(p: &Profile, mode: Mode, comp: Compensation) -> Result<
             p.servo.velocity_filter_hz as f32,
         ),
         mode,
-        compensation: comp != Compensation::Off,
+        compensation: comp,
     })
 }
 
@@ -200,7 +183,7 @@ impl ClosedLoop {
             h,
             band,
             substeps: opts.substeps,
-            delay: opts.computation_delay,
+            delay: motor.drive.computation_delay_periods == 1,
             noise: opts.current_noise_a,
             lsb: opts.current_lsb_a,
             rng: ChaCha8Rng::seed_from_u64(opts.seed),

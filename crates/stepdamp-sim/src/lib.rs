@@ -26,7 +26,9 @@ pub mod runlog;
 pub mod scenario;
 pub mod sweep;
 
-pub use closed_loop::{ClosedLoop, Compensation, PeriodRecord, SimError, SimOptions, controller_config, mode_name};
+pub use closed_loop::{
+    ClosedLoop, Compensation, PeriodRecord, SimError, SimOptions, compensation_name, controller_config, mode_name,
+};
 pub use plant::{PlantParams, PlantState};
 pub use profile::{PRESETS, Profile, ProfileError};
 pub use scenario::{RunMetrics, RunSpec, run};

@@ -74,6 +74,16 @@ pub struct DriveSection {
     /// Power stage: `"three-leg"` (the patent's, default) or `"two-h-bridge"`.
     #[serde(default)]
     pub topology: TopologyName,
+    /// Periods between sampling and the new duties taking effect: 1 (default; the drive
+    /// loads the PWM for the next period) or 0 (computed within the period). A current
+    /// loop faster than about pwm/12 needs 0: with a period of delay its phase margin
+    /// drops below 45°.
+    #[serde(default = "default_delay")]
+    pub computation_delay_periods: u8,
+}
+
+fn default_delay() -> u8 {
+    1
 }
 
 /// Power stage names in profiles.
@@ -270,6 +280,13 @@ impl Profile {
             ));
         }
         pos("drive.current_loop_bandwidth_hz", d.current_loop_bandwidth_hz)?;
+        if d.computation_delay_periods > 1 {
+            return Err(bad(
+                "drive.computation_delay_periods",
+                d.computation_delay_periods.to_string(),
+                "must be 0 or 1",
+            ));
+        }
         if d.current_loop_bandwidth_hz > d.pwm_hz / 4.0 {
             return Err(bad(
                 "drive.current_loop_bandwidth_hz",

@@ -1,7 +1,9 @@
 //! Constant-speed runs from rest and their velocity-error metrics.
 //!
-//! A run starts at rest with the command at the rotor, ramps the commanded speed linearly
-//! to the target in `ramp_s`, holds it to `duration_s`, and measures `ω − ω_cmd` over the
+//! A run starts at rest with the command at the rotor, holds the motor energised at
+//! standstill for `dwell_s` (as a drive does when it is enabled before it moves; the
+//! estimated-angle observer trims its resistance there), ramps the commanded speed
+//! linearly to the target in `ramp_s`, holds it to `duration_s`, and measures `ω − ω_cmd` over the
 //! last whole number of electrical periods that fit in `window_s` (at least one, if the
 //! run is long enough after the ramp). `lost_sync` is set when the rotor was ever more
 //! than half an electrical period (π electrical rad, two full steps) from the command
@@ -14,6 +16,8 @@ use crate::closed_loop::{ClosedLoop, PeriodRecord};
 pub struct RunSpec {
     /// Target speed in rad/s (sign = direction).
     pub speed_rad_s: f64,
+    /// Standstill time with the holding current on before the ramp, s.
+    pub dwell_s: f64,
     /// Ramp time from rest to the target in s.
     pub ramp_s: f64,
     /// Total simulated time in s.
@@ -23,21 +27,29 @@ pub struct RunSpec {
 }
 
 impl RunSpec {
-    /// The default sweep run: 0.1 s ramp, 1.5 s in all, measured over the last ≤ 0.5 s.
+    /// The default sweep run: 50 ms at standstill, 0.1 s ramp, 1.5 s in all, measured
+    /// over the last ≤ 0.5 s.
     pub fn at(speed_rad_s: f64) -> Self {
-        RunSpec { speed_rad_s, ramp_s: 0.1, duration_s: 1.5, window_s: 0.5 }
+        RunSpec { speed_rad_s, dwell_s: 0.05, ramp_s: 0.1, duration_s: 1.5, window_s: 0.5 }
     }
 
     /// Commanded speed at time `t` s.
     #[inline]
     pub fn speed_at(&self, t: f64) -> f64 {
-        if t >= self.ramp_s { self.speed_rad_s } else { self.speed_rad_s * t / self.ramp_s }
+        let t = t - self.dwell_s;
+        if t <= 0.0 {
+            0.0
+        } else if t >= self.ramp_s {
+            self.speed_rad_s
+        } else {
+            self.speed_rad_s * t / self.ramp_s
+        }
     }
 
     /// Number of control periods in the run and the index where measurement starts.
     pub fn periods(&self, pwm_hz: f64, pole_pairs: u16) -> (usize, usize) {
         let n = (self.duration_s * pwm_hz).round() as usize;
-        let ramp = (self.ramp_s * pwm_hz).ceil() as usize;
+        let ramp = ((self.dwell_s + self.ramp_s) * pwm_hz).ceil() as usize;
         let te = std::f64::consts::TAU / (f64::from(pole_pairs) * self.speed_rad_s.abs().max(1e-12));
         let whole = (self.window_s / te).floor().max(1.0);
         let w = ((whole * te * pwm_hz).round() as usize).min(n.saturating_sub(ramp)).max(1).min(n);

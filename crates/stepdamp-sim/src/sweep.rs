@@ -2,7 +2,9 @@
 //! its own noise seed derived from the sweep seed and its index, so the table is the same
 //! on any number of threads.
 
-use crate::closed_loop::{ClosedLoop, Compensation, SimError, SimOptions, controller_config, mode_name};
+use crate::closed_loop::{
+    ClosedLoop, Compensation, SimError, SimOptions, compensation_name, controller_config, mode_name,
+};
 use crate::profile::Profile;
 use crate::scenario::{RunSpec, run};
 use rayon::prelude::*;
@@ -80,7 +82,7 @@ pub fn sweep(
             tick();
             SweepRow {
                 mode: mode_name(mode),
-                compensation: comp.name(),
+                compensation: compensation_name(comp),
                 speed_cmd_rad_s: w,
                 vel_err_rms_rad_s: m.vel_err_rms_rad_s,
                 vel_err_pp_rad_s: m.vel_err_pp_rad_s,

@@ -151,7 +151,8 @@ fn holding_current_sets_the_natural_frequency() {
     m.motor.detent.clear();
     m.motor.coulomb_friction_nm = 0.0;
     m.drive.current_loop_bandwidth_hz = 5000.0;
-    let opts = SimOptions { computation_delay: false, ..SimOptions::default() };
+    m.drive.computation_delay_periods = 0;
+    let opts = SimOptions::default();
     let mut lp = ClosedLoop::new(&m, &m, Mode::OpenLoop, Compensation::Off, &opts).unwrap();
     let pwm = m.drive.pwm_hz;
     // Let the holding current build up, then release the rotor at a small angle.

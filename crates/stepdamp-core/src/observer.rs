@@ -1,0 +1,256 @@
+//! Load-angle observer for open loop: where the rotor is, without an encoder.
+//!
+//! In open loop the rotor lags the commanded electrical angle `θc` by the load angle
+//! `δ = θc − θe`, which grows with load torque and swings at resonance. In the frame of
+//! `θc` (rotating at `ωe = Nr·ω_cmd`) the back-EMF is
+//!
+//! ```text
+//! e_d = Km·ω·sin δ,   e_q = Km·ω·cos δ      ⇒   δ = atan2(e_d, e_q)   (ω > 0)
+//! ```
+//!
+//! which does not depend on `Km`. The back-EMF comes from the winding equations in that
+//! frame over the last PWM period, with the average voltage the drive applied and the
+//! mean of the two current samples, both rotated to the frame at mid-period:
+//!
+//! ```text
+//! ê_d = v_d − R̂·ī_d − L·Δi_d*/Ts + ωe·L·ī_q
+//! ê_q = v_q − R̂·ī_q − L·Δi_q*/Ts − ωe·L·ī_d
+//! ```
+//!
+//! The `L·di/dt` terms use the change of the
+//! *commanded* currents `i*`, which the current loop follows: differentiating the noisy
+//! samples would multiply sensor noise by `L/Ts` (50 Ω for the patent motor), while here
+//! it enters only through `R̂` and `ωe·L` (a few Ω).
+//!
+//! Two filters of `ê` give two estimates: `δ_slow` (5 Hz: the load angle, nearly free of
+//! sensor noise) and `δ_fast` (`bandwidth_hz`, 500 Hz by default: it follows the swing of
+//! the rotor at resonance, about 130 Hz for the patent motor). They are blended as
+//! `δ̂ = δ_slow + w·(δ_fast − δ_slow)` with the Wiener weight
+//! `w = 1 − var(noise of δ_fast) / var(δ_fast − δ_slow)` (clamped to [0, 1]), both
+//! variances tracked online at 5 Hz: the noise from the residual `ê − ê_fast`, scaled by
+//! the fast filter's noise gain `α/(2−α)` and by `1/|ê|²`. A real swing makes the
+//! difference large and `w → 1`; when the difference is only noise, `w → 0`.
+//!
+//! `R` drifts with temperature and drive voltage errors look like resistance: while the
+//! command is at standstill (and the current has settled on its command) the observer
+//! trims `R̂` until the back-EMF along the current vanishes, so the low-speed estimate
+//! does not carry a `ΔR·I_hold` bias. At low speed the back-EMF is weak: the estimate is
+//! shrunk towards `δ = 0` (the patent's law) by `|ê|²/(|ê|² + e_floor²)`.
+//!
+//! The magnitude `|ê| = Km·|ω|` measures the torque constant too: above
+//! `KM_MIN_EMF_FLOORS·e_floor` of back-EMF the observer tracks `K̂m = LP(|ê|)/|ω_cmd|`
+//! (5 Hz), and the compensation current is scaled by `Km/K̂m`, so a mis-identified
+//! `Km` does not turn into a wrong compensation amplitude. The current loop's integral
+//! gain follows `R̂` as well (`Ki = R̂·ωc`), which keeps the loop first order.
+//!
+//! Assumptions: `L` known; `R` known or trimmed at standstill; the applied voltage equals
+//! the commanded one (no dead time). Cost: one `atan2f`, one `sincosf`, about 60 flops
+//! per period.
+
+use crate::lowpass::LowPass;
+use crate::park::{Ab, Dq};
+use crate::pi::Pi;
+
+/// Observer gains, fixed at configuration.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LoadAngleObserver {
+    pub(crate) r_ohm: f32,
+    pub(crate) l_h: f32,
+    pub(crate) l_over_ts: f32,
+    pub(crate) period_s: f32,
+    pub(crate) filter: LowPass,
+    /// The slow (5 Hz) filter: estimate and variance trackers.
+    pub(crate) slow: LowPass,
+    /// White-noise power gain of the fast filter, `α/(2−α)`.
+    pub(crate) fast_noise_gain: f32,
+    /// Back-EMF below which the estimate is shrunk towards zero, V.
+    pub(crate) e_floor_v: f32,
+    /// Fraction of the resistance error corrected per period at standstill.
+    pub(crate) r_trim_gain: f32,
+    /// Periods between computing a voltage and its being applied (0 or 1).
+    pub(crate) delay_periods: usize,
+    /// The configured torque constant, N·m/A.
+    pub(crate) km: f32,
+    /// Filter of the torque-constant estimate.
+    pub(crate) km_filter: LowPass,
+}
+
+/// Corner of the slow estimate and of the variance trackers, Hz.
+const SLOW_HZ: f32 = 5.0;
+
+/// Back-EMF, in units of the floor, above which `K̂m` is tracked.
+const KM_MIN_EMF_FLOORS: f32 = 20.0;
+
+/// Observer state.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ObserverState {
+    last_current: Ab,
+    /// Voltages computed in the last two periods, newest first.
+    voltage_history: [Ab; 2],
+    /// Current commands (in their own `θc` frame) of the last two periods, newest first.
+    command_history: [Dq; 2],
+    started: bool,
+    /// Back-EMF in the `θc` frame through the fast filter, V.
+    pub e_dq: Dq,
+    /// Back-EMF in the `θc` frame through the slow filter, V.
+    pub e_dq_slow: Dq,
+    /// Power of the residual `ê − ê_fast`, V².
+    pub residual_power_v2: f32,
+    /// Mean square of `δ_fast − δ_slow`, rad².
+    pub swing_power_rad2: f32,
+    /// Weight of the fast estimate in `δ̂`.
+    pub fast_weight: f32,
+    /// Resistance estimate, Ω (0 until the first period: then the configured value).
+    pub r_hat_ohm: f32,
+    /// Load angle estimate `δ̂ = θc − θ̂e`, electrical rad.
+    pub delta_rad: f32,
+    /// Torque-constant estimate, N·m/A (the configured value until the motor runs).
+    pub km_hat: f32,
+}
+
+impl LoadAngleObserver {
+    /// An observer for a winding of `r_ohm`, `l_h`, sampled every `period_s`, with the
+    /// voltage applied `delay_periods` (0 or 1) after it is computed.
+    pub fn new(
+        r_ohm: f32,
+        l_h: f32,
+        km: f32,
+        period_s: f32,
+        bandwidth_hz: f32,
+        e_floor_v: f32,
+        delay_periods: usize,
+    ) -> Self {
+        LoadAngleObserver {
+            r_ohm,
+            l_h,
+            l_over_ts: l_h / period_s,
+            period_s,
+            filter: LowPass::new(bandwidth_hz, period_s),
+            slow: LowPass::new(SLOW_HZ, period_s),
+            fast_noise_gain: {
+                let a = LowPass::new(bandwidth_hz, period_s).alpha();
+                a / (2.0 - a)
+            },
+            e_floor_v,
+            // Time constant 100 periods: 5 ms at 20 kHz.
+            r_trim_gain: 1e-2,
+            delay_periods: delay_periods.min(1),
+            km,
+            km_filter: LowPass::new(5.0, period_s),
+        }
+    }
+
+    /// The current-loop gains with `Ki` rescaled from the configured `R` to `R̂`.
+    #[inline]
+    pub fn current_pi(&self, pi: &Pi, st: &ObserverState) -> Pi {
+        let scale = if st.r_hat_ohm > 0.0 { st.r_hat_ohm / self.r_ohm } else { 1.0 };
+        Pi { kp: pi.kp, ki_ts: pi.ki_ts * scale }
+    }
+
+    /// `Km / K̂m`: the factor that corrects a compensation current computed with the
+    /// configured `Km` (bounded to `[0.5, 2]`).
+    #[inline]
+    pub fn km_correction(&self, st: &ObserverState) -> f32 {
+        (self.km / st.km_hat).max(0.5).min(2.0)
+    }
+
+    /// Takes this period's current sample `i` and the command's electrical angle `(sin θc,
+    /// cos θc)`, its advance per period `dtheta_e` (rad), the commanded speed sign and
+    /// the commanded speed in rad/s; returns the load-angle estimate. Call [`LoadAngleObserver::record_voltage`] with the
+    /// voltage computed in this period afterwards.
+    #[inline]
+    #[allow(clippy::too_many_arguments)]
+    pub fn update(
+        &self,
+        st: &mut ObserverState,
+        i: Ab,
+        sin: f32,
+        cos: f32,
+        dtheta_e: f32,
+        direction: f32,
+        speed_rad_s: f32,
+    ) -> f32 {
+        if !st.started {
+            st.started = true;
+            st.last_current = i;
+            st.r_hat_ohm = self.r_ohm;
+            st.km_hat = self.km;
+            return 0.0;
+        }
+        let v = st.voltage_history[self.delay_periods];
+        let (ia, ib) = (0.5 * (i.a + st.last_current.a), 0.5 * (i.b + st.last_current.b));
+        st.last_current = i;
+        // The frame at the middle of the period: θc − ½Δ (small-angle rotation).
+        let h = 0.5 * dtheta_e;
+        let (s, c) = (sin - h * cos, cos + h * sin);
+        let (vd, vq) = (v.a * c + v.b * s, -v.a * s + v.b * c);
+        let (id, iq) = (ia * c + ib * s, -ia * s + ib * c);
+        // The commands that drove the current over the last period, one delay older.
+        let di = Dq {
+            d: st.command_history[0].d - st.command_history[1].d,
+            q: st.command_history[0].q - st.command_history[1].q,
+        };
+        let wl = dtheta_e / self.period_s * self.l_h;
+        let ed = vd - st.r_hat_ohm * id - self.l_over_ts * di.d + wl * iq;
+        let eq = vq - st.r_hat_ohm * iq - self.l_over_ts * di.q - wl * id;
+        self.filter.update(&mut st.e_dq.d, ed);
+        self.filter.update(&mut st.e_dq.q, eq);
+        self.slow.update(&mut st.e_dq_slow.d, ed);
+        self.slow.update(&mut st.e_dq_slow.q, eq);
+        let (rd, rq) = (ed - st.e_dq.d, eq - st.e_dq.q);
+        self.slow.update(&mut st.residual_power_v2, rd * rd + rq * rq);
+        if direction == 0.0 {
+            // Standstill: no back-EMF, so what remains along the current is resistance
+            // error; trimmed once the current has settled on its command.
+            let cmd = st.command_history[0];
+            let settled = (cmd.d - id).abs() + (cmd.q - iq).abs() < 0.02 * (cmd.d.abs() + cmd.q.abs());
+            let i2 = id * id + iq * iq;
+            if settled && i2 > 1e-4 {
+                let de = (ed * id + eq * iq) / i2;
+                st.r_hat_ohm = (st.r_hat_ohm + self.r_trim_gain * de).max(0.25 * self.r_ohm).min(4.0 * self.r_ohm);
+            }
+            st.delta_rad = 0.0;
+        } else {
+            let (d, q) = (direction * st.e_dq.d, direction * st.e_dq.q);
+            let (ds, qs) = (direction * st.e_dq_slow.d, direction * st.e_dq_slow.q);
+            let fast = libm::atan2f(d, q);
+            let slow = libm::atan2f(ds, qs);
+            let e2 = d * d + q * q;
+            let swing = fast - slow;
+            self.slow.update(&mut st.swing_power_rad2, swing * swing);
+            let noise = self.fast_noise_gain * st.residual_power_v2 / e2.max(1e-12);
+            st.fast_weight = (1.0 - noise / st.swing_power_rad2.max(1e-12)).max(0.0).min(1.0);
+            // Weak back-EMF at low speed: shrink towards the patent's law (δ = 0).
+            let w = e2 / (e2 + self.e_floor_v * self.e_floor_v);
+            st.delta_rad = w * (slow + st.fast_weight * swing);
+            let floor = KM_MIN_EMF_FLOORS * self.e_floor_v;
+            if e2 > floor * floor && speed_rad_s != 0.0 {
+                self.km_filter.update(&mut st.km_hat, libm::sqrtf(e2) / speed_rad_s.abs());
+            }
+        }
+        if !(st.delta_rad.is_finite()
+            && st.residual_power_v2.is_finite()
+            && st.swing_power_rad2.is_finite()
+            && st.e_dq_slow.d.is_finite()
+            && st.e_dq_slow.q.is_finite()
+            && st.e_dq.d.is_finite()
+            && st.e_dq.q.is_finite()
+            && st.r_hat_ohm.is_finite()
+            && st.km_hat.is_finite()
+            && st.km_hat > 0.0)
+        {
+            *st = ObserverState { started: false, ..ObserverState::default() };
+        }
+        st.delta_rad
+    }
+
+    /// Records the voltage computed in this period (after limiting) and the current
+    /// command in the `θc` frame.
+    #[inline]
+    pub fn record(&self, st: &mut ObserverState, v: Ab, i_cmd: Dq) {
+        st.voltage_history[1] = st.voltage_history[0];
+        st.voltage_history[0] = v;
+        st.command_history[1] = st.command_history[0];
+        st.command_history[0] = i_cmd;
+    }
+}
