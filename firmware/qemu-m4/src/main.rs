@@ -17,8 +17,8 @@ use core::panic::PanicInfo;
 use cortex_m_rt::{ExceptionFrame, entry, exception};
 use cortex_m_semihosting::{debug, hprintln};
 use stepdamp_core::{
-    Config, DriveSettings, Harmonic, LegDuties, Measurement, Mode, MotorModel, Params, Position, ServoGains, State,
-    Topology, step,
+    Compensation, Config, DriveSettings, Harmonic, LegDuties, Measurement, Mode, MotorModel, Params, Position,
+    ServoGains, State, Topology, step,
 };
 
 /// Periods between printed lines.
@@ -41,8 +41,8 @@ const L: f32 = 2.5e-3;
 const VDC: f32 = 48.0;
 const CPR: u32 = 4000;
 
-/// The `patent-motor` configuration in the given mode, with detent compensation on.
-fn patent_motor(mode: Mode) -> Params<'static> {
+/// The `patent-motor` configuration in the given mode and compensation.
+fn patent_motor(mode: Mode, compensation: Compensation) -> Params<'static> {
     Params {
         motor: MotorModel {
             km_nm_per_a: KM,
@@ -59,11 +59,12 @@ fn patent_motor(mode: Mode) -> Params<'static> {
             current_limit_a: 3.0,
             current_loop_bandwidth_hz: 1500.0,
             topology: Topology::ThreeLeg,
+            computation_delay_periods: 1,
         },
         encoder_counts_per_rev: CPR,
         servo: ServoGains::for_bandwidth(4.0e-5, 50.0, 300.0),
         mode,
-        compensation: true,
+        compensation,
     }
 }
 
@@ -121,8 +122,8 @@ fn fail(what: &str, n: u32) -> ! {
 }
 
 /// Runs one phase of [`PERIODS`] periods; `speed(n)` gives the command in rad/s.
-fn run(tag: &str, mode: Mode, speed: fn(u32) -> f32, hash: &mut Fnv) -> u32 {
-    let cfg = match Config::new(&patent_motor(mode)) {
+fn run(tag: &str, mode: Mode, compensation: Compensation, speed: fn(u32) -> f32, hash: &mut Fnv) -> u32 {
+    let cfg = match Config::new(&patent_motor(mode, compensation)) {
         Ok(c) => c,
         Err(_) => fail("Config::new", 0),
     };
@@ -164,7 +165,16 @@ fn run(tag: &str, mode: Mode, speed: fn(u32) -> f32, hash: &mut Fnv) -> u32 {
         plant.advance(topology, &out.duties, theta, st.speed_command_rad_s());
         theta = st.position_command();
     }
-    hprintln!("{} end i_a={:.4e} i_b={:.4e} faults={}", tag, plant.i_a, plant.i_b, st.sample_faults);
+    hprintln!(
+        "{} end i_a={:.4e} i_b={:.4e} faults={} observer: R={:.4e} Km={:.4e} delta={:.4e}",
+        tag,
+        plant.i_a,
+        plant.i_b,
+        st.sample_faults,
+        st.observer.r_hat_ohm,
+        st.observer.km_hat,
+        st.observer.delta_rad
+    );
     if mode == Mode::OpenLoop && st.sample_faults != 1 {
         fail("expected exactly one sample fault", PERIODS);
     }
@@ -175,11 +185,14 @@ fn run(tag: &str, mode: Mode, speed: fn(u32) -> f32, hash: &mut Fnv) -> u32 {
 fn main() -> ! {
     hprintln!("stepdamp-core on Cortex-M4F: patent-motor, three legs, {} periods per phase", PERIODS);
     let mut hash = Fnv(0x811c_9dc5);
-    let mut faults = run("ol", Mode::OpenLoop, |_| 8.4, &mut hash);
+    let mut faults = run("ol", Mode::OpenLoop, Compensation::Patent, |_| 8.4, &mut hash);
+    // Open loop with the load-angle observer: standstill first (resistance trim), then run.
+    faults += run("oe", Mode::OpenLoop, Compensation::Estimated, |n| if n < 500 { 0.0 } else { 8.4 }, &mut hash);
     // Servo: forward, stop, reverse (the friction feed-forward follows the sign).
     faults += run(
         "sv",
         Mode::Servo,
+        Compensation::Patent,
         |n| match n {
             0..1000 => 8.4,
             1000..2000 => 0.0,
@@ -187,7 +200,7 @@ fn main() -> ! {
         },
         &mut hash,
     );
-    hprintln!("checksum fnv1a=0x{:08x} periods={} faults={}", hash.0, 2 * PERIODS, faults);
+    hprintln!("checksum fnv1a=0x{:08x} periods={} faults={}", hash.0, 3 * PERIODS, faults);
     debug::exit(debug::EXIT_SUCCESS);
     loop {
         cortex_m::asm::bkpt();
