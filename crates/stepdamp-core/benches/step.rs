@@ -1,4 +1,5 @@
-//! Cost of one drive step (open loop and servo, three detent harmonics) on the host.
+//! Cost of one drive step (open loop with the patent's law and with the estimated angle,
+//! servo; three detent harmonics) on the host.
 #![allow(missing_docs)]
 
 use criterion::{Criterion, criterion_group, criterion_main};
@@ -11,7 +12,7 @@ const DETENT: [Harmonic; 3] = [
     Harmonic { order: 1, amplitude_nm: 0.008, phase_rad: -1.1 },
 ];
 
-fn config(mode: Mode) -> Config {
+fn config(mode: Mode, compensation: Compensation) -> Config {
     Config::new(&Params {
         motor: MotorModel {
             km_nm_per_a: 0.3,
@@ -33,14 +34,18 @@ fn config(mode: Mode) -> Config {
         encoder_counts_per_rev: 4000,
         servo: ServoGains::for_bandwidth(4.0e-5, 50.0, 300.0),
         mode,
-        compensation: Compensation::Patent,
+        compensation,
     })
     .expect("valid preset")
 }
 
 fn bench(c: &mut Criterion) {
-    for (name, mode) in [("open_loop_step", Mode::OpenLoop), ("servo_step", Mode::Servo)] {
-        let cfg = config(mode);
+    for (name, mode, comp) in [
+        ("open_loop_step", Mode::OpenLoop, Compensation::Patent),
+        ("open_loop_step_estimated", Mode::OpenLoop, Compensation::Estimated),
+        ("servo_step", Mode::Servo, Compensation::Patent),
+    ] {
+        let cfg = config(mode, comp);
         let mut st = State::default();
         st.command_speed(&cfg, 8.4);
         let mut k = 0u32;

@@ -70,5 +70,13 @@ pub use drive::{Measurement, Output, Signals, State, step};
 pub use modulator::{LegDuties, Topology};
 pub use park::{Ab, Dq};
 
+/// `x` limited to `[lo, hi]`, with NaN mapped to `lo` (`f32::clamp` would return NaN,
+/// and the controller must never output or store NaN).
+#[allow(clippy::manual_clamp)]
+#[inline]
+pub(crate) fn bound(x: f32, lo: f32, hi: f32) -> f32 {
+    x.max(lo).min(hi)
+}
+
 #[cfg(test)]
 mod tests;

@@ -106,12 +106,9 @@ impl Topology {
     }
 }
 
-// Not `clamp`: that returns NaN for NaN, and duties must never be NaN.
-#[allow(clippy::manual_clamp)]
 #[inline]
 fn clamp01(x: f32) -> f32 {
-    // `max` then `min` maps NaN to 0 (f32::max returns the non-NaN operand).
-    x.max(0.0).min(1.0)
+    crate::bound(x, 0.0, 1.0)
 }
 
 #[cfg(test)]

@@ -37,9 +37,9 @@
 //! does not carry a `ΔR·I_hold` bias. At low speed the back-EMF is weak: the estimate is
 //! shrunk towards `δ = 0` (the patent's law) by `|ê|²/(|ê|² + e_floor²)`.
 //!
-//! The magnitude `|ê| = Km·|ω|` measures the torque constant too: above
-//! `KM_MIN_EMF_FLOORS·e_floor` of back-EMF the observer tracks `K̂m = LP(|ê|)/|ω_cmd|`
-//! (5 Hz), and the compensation current is scaled by `Km/K̂m`, so a mis-identified
+//! The magnitude `|ê| = Km·|ω|` measures the torque constant too: when the command
+//! implies more than `KM_MIN_EMF_FLOORS·e_floor` of back-EMF the observer tracks
+//! `K̂m = LP(|ê|/|ω_cmd|)` (5 Hz, each sample bounded to `[0.5, 2]·Km`), and the compensation current is scaled by `Km/K̂m`, so a mis-identified
 //! `Km` does not turn into a wrong compensation amplitude. The current loop's integral
 //! gain follows `R̂` as well (`Ki = R̂·ωc`), which keeps the loop first order.
 //!
@@ -151,7 +151,7 @@ impl LoadAngleObserver {
     /// configured `Km` (bounded to `[0.5, 2]`).
     #[inline]
     pub fn km_correction(&self, st: &ObserverState) -> f32 {
-        (self.km / st.km_hat).max(0.5).min(2.0)
+        crate::bound(self.km / st.km_hat, 0.5, 2.0)
     }
 
     /// Takes this period's current sample `i` and the command's electrical angle `(sin θc,
@@ -219,13 +219,16 @@ impl LoadAngleObserver {
             let swing = fast - slow;
             self.slow.update(&mut st.swing_power_rad2, swing * swing);
             let noise = self.fast_noise_gain * st.residual_power_v2 / e2.max(1e-12);
-            st.fast_weight = (1.0 - noise / st.swing_power_rad2.max(1e-12)).max(0.0).min(1.0);
+            st.fast_weight = crate::bound(1.0 - noise / st.swing_power_rad2.max(1e-12), 0.0, 1.0);
             // Weak back-EMF at low speed: shrink towards the patent's law (δ = 0).
             let w = e2 / (e2 + self.e_floor_v * self.e_floor_v);
             st.delta_rad = w * (slow + st.fast_weight * swing);
-            let floor = KM_MIN_EMF_FLOORS * self.e_floor_v;
-            if e2 > floor * floor && speed_rad_s != 0.0 {
-                self.km_filter.update(&mut st.km_hat, libm::sqrtf(e2) / speed_rad_s.abs());
+            // Gate on the back-EMF the command implies (a transient |ê| at a low command
+            // speed would make the ratio explode), and bound each sample.
+            let speed = speed_rad_s.abs();
+            if self.km * speed > KM_MIN_EMF_FLOORS * self.e_floor_v {
+                let ratio = (libm::sqrtf(e2) / speed).max(0.5 * self.km).min(2.0 * self.km);
+                self.km_filter.update(&mut st.km_hat, ratio);
             }
         }
         if !(st.delta_rad.is_finite()
@@ -252,5 +255,88 @@ impl LoadAngleObserver {
         st.voltage_history[0] = v;
         st.command_history[1] = st.command_history[0];
         st.command_history[0] = i_cmd;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use core::f32::consts::TAU;
+
+    const R: f32 = 0.9;
+    const L: f32 = 2.5e-3;
+    const KM: f32 = 0.3;
+    const TS: f32 = 5e-5;
+
+    fn observer(r: f32, km: f32) -> LoadAngleObserver {
+        LoadAngleObserver::new(r, L, km, TS, 500.0, 0.02 * r * 1.9, 0)
+    }
+
+    fn rot(th: f32, x: Dq) -> Ab {
+        let (s, c) = libm::sincosf(th);
+        Ab { a: x.d * c - x.q * s, b: x.d * s + x.q * c }
+    }
+
+    /// Steady state in the command frame: constant i_dq, rotor `delta` behind at speed `w`;
+    /// the voltages the winding equations require.
+    fn run(obs: &LoadAngleObserver, st: &mut ObserverState, w: f32, delta: f32, r_true: f32, n: usize) {
+        let i = Dq { d: 1.9, q: 0.0 };
+        let we = 50.0 * w;
+        let dth = we * TS;
+        let mut th = 0.0f32;
+        let dir = if w > 0.0 {
+            1.0
+        } else if w < 0.0 {
+            -1.0
+        } else {
+            0.0
+        };
+        for _ in 0..n {
+            let (s, c) = libm::sincosf(th);
+            obs.update(st, rot(th, i), s, c, dth, dir, w);
+            // Voltage for the coming period, in the frame at its middle.
+            let e = Dq { d: KM * w * libm::sinf(delta), q: KM * w * libm::cosf(delta) };
+            let v = Dq { d: r_true * i.d + e.d - we * L * i.q, q: r_true * i.q + e.q + we * L * i.d };
+            obs.record(st, rot(th + 0.5 * dth, v), i);
+            th = (th + dth) % TAU;
+        }
+    }
+
+    #[test]
+    fn recovers_the_load_angle_from_back_emf() {
+        for (w, delta) in [(5.0, 0.05), (20.0, 0.3), (-8.0, 0.2)] {
+            let obs = observer(R, KM);
+            let mut st = ObserverState::default();
+            run(&obs, &mut st, w, delta, R, 20_000);
+            assert!((st.delta_rad - delta).abs() < 0.01, "w {w}: {} vs {delta}", st.delta_rad);
+        }
+    }
+
+    #[test]
+    fn trims_a_20_percent_resistance_error_at_standstill() {
+        let obs = observer(1.2 * R, KM);
+        let mut st = ObserverState::default();
+        run(&obs, &mut st, 0.0, 0.0, R, 1_000);
+        assert!((st.r_hat_ohm - R).abs() < 0.001 * R, "{}", st.r_hat_ohm);
+    }
+
+    #[test]
+    fn measures_the_torque_constant_from_back_emf_magnitude() {
+        let obs = observer(R, 0.8 * KM);
+        let mut st = ObserverState::default();
+        run(&obs, &mut st, 20.0, 0.1, R, 20_000);
+        assert!((st.km_hat - KM).abs() < 0.01 * KM, "{}", st.km_hat);
+        assert!((obs.km_correction(&st) - 0.8).abs() < 0.01);
+    }
+
+    #[test]
+    fn non_finite_samples_restart_the_observer_instead_of_poisoning_it() {
+        let obs = observer(R, KM);
+        let mut st = ObserverState::default();
+        run(&obs, &mut st, 5.0, 0.05, R, 100);
+        obs.update(&mut st, Ab { a: f32::NAN, b: 0.0 }, 0.0, 1.0, 0.01, 1.0, 5.0);
+        assert!(st.delta_rad.is_finite() && st.km_hat.is_finite() && st.r_hat_ohm.is_finite());
+        run(&obs, &mut st, 5.0, 0.05, R, 20_000);
+        assert!((st.delta_rad - 0.05).abs() < 0.01);
     }
 }

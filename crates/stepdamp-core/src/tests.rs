@@ -124,8 +124,12 @@ fn servo_current_command_is_clamped_to_the_limit() {
 
 #[test]
 fn a_nan_sample_acts_as_a_repeat_of_the_last_good_sample() {
-    for mode in [Mode::OpenLoop, Mode::Servo] {
-        let cfg = Config::new(&params(mode, Compensation::Patent)).unwrap();
+    for (mode, comp) in [
+        (Mode::OpenLoop, Compensation::Patent),
+        (Mode::OpenLoop, Compensation::Estimated),
+        (Mode::Servo, Compensation::Patent),
+    ] {
+        let cfg = Config::new(&params(mode, comp)).unwrap();
         let mut a = State::default();
         let mut b = State::default();
         a.command_speed(&cfg, 3.0);
@@ -154,9 +158,11 @@ proptest! {
         seq in proptest::collection::vec(
             (proptest::num::f32::ANY, proptest::num::f32::ANY, any::<u32>(), proptest::num::f32::ANY), 1..60),
         servo in any::<bool>(),
+        comp in 0usize..3,
     ) {
         let mode = if servo { Mode::Servo } else { Mode::OpenLoop };
-        let cfg = Config::new(&params(mode, Compensation::Patent)).unwrap();
+        let comp = [Compensation::Off, Compensation::Patent, Compensation::Estimated][comp];
+        let cfg = Config::new(&params(mode, comp)).unwrap();
         let mut st = State::default();
         for (ia, ib, enc, w) in seq {
             st.command_speed(&cfg, w);
