@@ -8,7 +8,16 @@ tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 
 # Figs. 4–7 analogue: the README's main command.
-$bin --quiet sweep --motor patent-motor --mode both --compensation both --from 1 --to 40 --points 60 --out "$tmp/patent"
+$bin --quiet sweep --motor patent-motor --mode both --compensation both --from 1 --to 40 --points 60 --out "$tmp/patent" > docs/sweep-patent-motor.txt
 cp "$tmp/patent/sweep.png" docs/sweep-patent-motor.png
 cp "$tmp/patent/sweep.csv" docs/sweep-patent-motor.csv
+# Issue 5: the patent's law and the estimated rotor angle side by side, open loop.
+$bin --quiet sweep --motor patent-motor --mode open-loop --compensation off,patent,estimated --out "$tmp/nominal" > docs/sweep-estimated-nominal.txt
+cp "$tmp/nominal/sweep.png" docs/sweep-estimated-nominal.png
+$bin --quiet sweep --motor patent-motor --mode open-loop --compensation off,patent,estimated --load-torque 0.171 --out "$tmp/load" > docs/sweep-estimated-load.txt
+cp "$tmp/load/sweep.png" docs/sweep-estimated-load.png
+$bin --quiet sweep --motor docs/profiles/patent-motor-low-damping.toml --mode open-loop --compensation off,patent,estimated --out "$tmp/lowdamp" > docs/sweep-estimated-low-damping.txt
+cp "$tmp/lowdamp/sweep.png" docs/sweep-estimated-low-damping.png
+# Summaries name the temporary directory; keep them free of it.
+sed -i "s|$tmp/[a-z]*/|out/|" docs/*.txt
 echo "figures written to docs/"

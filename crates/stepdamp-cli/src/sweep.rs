@@ -132,7 +132,13 @@ pub fn run(a: SweepArgs, g: &Global) -> Result<()> {
     let svg = a.out.join("sweep.svg");
     let png = a.out.join("sweep.png");
     let (tsvg, tpng) = (files.stage(&svg), files.stage(&png));
-    let title = format!("{}: velocity error vs speed", motor.name);
+    let mut title = format!("{}: velocity error vs speed", motor.name);
+    if a.load_torque > 0.0 {
+        title += &format!(", load {} N·m", a.load_torque);
+    }
+    if a.controller_motor.is_some() {
+        title += &format!(", controller model {}", controller.name);
+    }
     sweep_plot(&rows, &resonance_markers(&motor), &title, &tsvg, &tpng)?;
     let written = files.commit()?;
 
