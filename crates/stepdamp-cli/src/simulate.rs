@@ -26,7 +26,7 @@ pub struct SimulateArgs {
     #[arg(long, allow_negative_numbers = true)]
     pub speed: f64,
     /// Simulated time in s.
-    #[arg(long, default_value_t = 1.5)]
+    #[arg(long, default_value_t = 1.5, allow_negative_numbers = true)]
     pub duration: f64,
     /// Standstill time with the holding current on before the ramp, s.
     #[arg(long, default_value_t = 0.05)]
@@ -35,10 +35,10 @@ pub struct SimulateArgs {
     #[arg(long, default_value_t = 0.1)]
     pub ramp: f64,
     /// Constant load torque in N·m opposing the direction of travel.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub load_torque: f64,
     /// Current-sensor noise, standard deviation in A.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub current_noise: f64,
     /// Seed of the noise generator.
     #[arg(long, default_value_t = 1)]

@@ -26,23 +26,23 @@ pub struct SweepArgs {
     #[arg(long, default_value = "both")]
     pub compensation: String,
     /// Lowest speed in rad/s.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pub from: f64,
     /// Highest speed in rad/s.
-    #[arg(long, default_value_t = 40.0)]
+    #[arg(long, default_value_t = 40.0, allow_negative_numbers = true)]
     pub to: f64,
     /// Number of speeds.
     #[arg(long, default_value_t = 60)]
     pub points: usize,
     /// Simulated time per run in s (50 ms standstill, 0.1 s ramp, error measured over the
     /// last ≤ 0.5 s).
-    #[arg(long, default_value_t = 1.5)]
+    #[arg(long, default_value_t = 1.5, allow_negative_numbers = true)]
     pub duration: f64,
     /// Constant load torque in N·m opposing the direction of travel.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub load_torque: f64,
     /// Current-sensor noise, standard deviation in A.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub current_noise: f64,
     /// RK4 steps per PWM period.
     #[arg(long, default_value_t = 2)]
