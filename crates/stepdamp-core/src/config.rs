@@ -114,6 +114,55 @@ pub enum Compensation {
     Estimated,
 }
 
+/// Detent harmonics of the `patent-motor` (design.md §6–§7).
+pub const PATENT_MOTOR_DETENT: [Harmonic; 3] = [
+    Harmonic { order: 4, amplitude_nm: 0.02, phase_rad: 0.0 },
+    Harmonic { order: 2, amplitude_nm: 0.012, phase_rad: 0.7 },
+    Harmonic { order: 1, amplitude_nm: 0.008, phase_rad: -1.1 },
+];
+
+impl Params<'static> {
+    /// The controller of the `patent-motor` preset (Km 0.3 N·m/A, Nr 50, 0.9 Ω, 2.5 mH,
+    /// 48 V three-leg stage at 20 kHz with a one-period computation delay, 1.9 A holding,
+    /// 3 A limit, 1.5 kHz current loop, 4000-count encoder, 50 Hz servo loop): the
+    /// reference configuration of the benchmarks, the tests and the Cortex-M4F firmware.
+    pub const fn patent_motor(mode: Mode, compensation: Compensation) -> Params<'static> {
+        Params {
+            motor: MotorModel {
+                km_nm_per_a: 0.3,
+                pole_pairs: 50,
+                resistance_ohm: 0.9,
+                inductance_h: 2.5e-3,
+                coulomb_friction_nm: 0.01,
+                detent: &PATENT_MOTOR_DETENT,
+            },
+            drive: DriveSettings {
+                bus_voltage_v: 48.0,
+                pwm_hz: 20_000.0,
+                holding_current_a: 1.9,
+                current_limit_a: 3.0,
+                current_loop_bandwidth_hz: 1500.0,
+                topology: Topology::ThreeLeg,
+                computation_delay_periods: 1,
+            },
+            encoder_counts_per_rev: 4000,
+            // ServoGains::for_bandwidth(4.0e-5, 50.0, 300.0), spelled out for `const`.
+            servo: ServoGains {
+                velocity_nm_s_per_rad: 2.0 * 0.7 * 4.0e-5 * (core::f32::consts::TAU * 50.0),
+                position_nm_per_rad: 4.0e-5 * (core::f32::consts::TAU * 50.0) * (core::f32::consts::TAU * 50.0),
+                position_integral_nm_per_rad_s: 4.0e-5
+                    * (core::f32::consts::TAU * 50.0)
+                    * (core::f32::consts::TAU * 50.0)
+                    * (core::f32::consts::TAU * 50.0)
+                    / 10.0,
+                velocity_filter_hz: 300.0,
+            },
+            mode,
+            compensation,
+        }
+    }
+}
+
 /// Why parameters were rejected.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum ConfigError {

@@ -64,7 +64,9 @@ pub mod park;
 pub mod pi;
 
 pub use angle::{MicrostepAccumulator, Position};
-pub use config::{Compensation, Config, ConfigError, DriveSettings, Mode, MotorModel, Params, ServoGains};
+pub use config::{
+    Compensation, Config, ConfigError, DriveSettings, Mode, MotorModel, PATENT_MOTOR_DETENT, Params, ServoGains,
+};
 pub use detent::{Harmonic, HarmonicSeries, MAX_HARMONIC_ORDER};
 pub use drive::{Measurement, Output, Signals, State, step};
 pub use modulator::{LegDuties, Topology};

@@ -3,36 +3,15 @@
 use super::*;
 use proptest::prelude::*;
 
-const DETENT: [Harmonic; 3] = [
-    Harmonic { order: 4, amplitude_nm: 0.02, phase_rad: 0.0 },
-    Harmonic { order: 2, amplitude_nm: 0.012, phase_rad: 0.7 },
-    Harmonic { order: 1, amplitude_nm: 0.008, phase_rad: -1.1 },
-];
+const DETENT: [Harmonic; 3] = PATENT_MOTOR_DETENT;
 
 fn params(mode: Mode, compensation: Compensation) -> Params<'static> {
-    Params {
-        motor: MotorModel {
-            km_nm_per_a: 0.3,
-            pole_pairs: 50,
-            resistance_ohm: 0.9,
-            inductance_h: 2.5e-3,
-            coulomb_friction_nm: 0.01,
-            detent: &DETENT,
-        },
-        drive: DriveSettings {
-            bus_voltage_v: 48.0,
-            pwm_hz: 20_000.0,
-            holding_current_a: 1.9,
-            current_limit_a: 3.0,
-            current_loop_bandwidth_hz: 1500.0,
-            topology: Topology::ThreeLeg,
-            computation_delay_periods: 1,
-        },
-        encoder_counts_per_rev: 4000,
-        servo: ServoGains::for_bandwidth(4.0e-5, 50.0, 300.0),
-        mode,
-        compensation,
-    }
+    Params::patent_motor(mode, compensation)
+}
+
+#[test]
+fn the_reference_servo_gains_are_those_of_a_50_hz_loop() {
+    assert_eq!(params(Mode::Servo, Compensation::Off).servo, ServoGains::for_bandwidth(4.0e-5, 50.0, 300.0));
 }
 
 #[test]

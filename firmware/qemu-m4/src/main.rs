@@ -16,10 +16,7 @@ use core::panic::PanicInfo;
 
 use cortex_m_rt::{ExceptionFrame, entry, exception};
 use cortex_m_semihosting::{debug, hprintln};
-use stepdamp_core::{
-    Compensation, Config, DriveSettings, Harmonic, LegDuties, Measurement, Mode, MotorModel, Params, Position,
-    ServoGains, State, Topology, step,
-};
+use stepdamp_core::{Compensation, Config, LegDuties, Measurement, Mode, Params, Position, State, Topology, step};
 
 /// Periods between printed lines.
 const PRINT_EVERY: u32 = 250;
@@ -28,45 +25,12 @@ const PERIODS: u32 = 3000;
 /// Open-loop period whose current sample is NaN.
 const NAN_AT: u32 = 1500;
 
-const DETENT: [Harmonic; 3] = [
-    Harmonic { order: 4, amplitude_nm: 0.02, phase_rad: 0.0 },
-    Harmonic { order: 2, amplitude_nm: 0.012, phase_rad: 0.7 },
-    Harmonic { order: 1, amplitude_nm: 0.008, phase_rad: -1.1 },
-];
-
 const KM: f32 = 0.3;
 const NR: u16 = 50;
 const R: f32 = 0.9;
 const L: f32 = 2.5e-3;
 const VDC: f32 = 48.0;
 const CPR: u32 = 4000;
-
-/// The `patent-motor` configuration in the given mode and compensation.
-fn patent_motor(mode: Mode, compensation: Compensation) -> Params<'static> {
-    Params {
-        motor: MotorModel {
-            km_nm_per_a: KM,
-            pole_pairs: NR,
-            resistance_ohm: R,
-            inductance_h: L,
-            coulomb_friction_nm: 0.01,
-            detent: &DETENT,
-        },
-        drive: DriveSettings {
-            bus_voltage_v: VDC,
-            pwm_hz: 20_000.0,
-            holding_current_a: 1.9,
-            current_limit_a: 3.0,
-            current_loop_bandwidth_hz: 1500.0,
-            topology: Topology::ThreeLeg,
-            computation_delay_periods: 1,
-        },
-        encoder_counts_per_rev: CPR,
-        servo: ServoGains::for_bandwidth(4.0e-5, 50.0, 300.0),
-        mode,
-        compensation,
-    }
-}
 
 /// Two RL windings with back-EMF from a rotor that follows the command exactly.
 struct Plant {
@@ -123,7 +87,7 @@ fn fail(what: &str, n: u32) -> ! {
 
 /// Runs one phase of [`PERIODS`] periods; `speed(n)` gives the command in rad/s.
 fn run(tag: &str, mode: Mode, compensation: Compensation, speed: fn(u32) -> f32, hash: &mut Fnv) -> u32 {
-    let cfg = match Config::new(&patent_motor(mode, compensation)) {
+    let cfg = match Config::new(&Params::patent_motor(mode, compensation)) {
         Ok(c) => c,
         Err(_) => fail("Config::new", 0),
     };
