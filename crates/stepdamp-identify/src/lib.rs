@@ -1,3 +1,50 @@
 //! # stepdamp-identify
 //!
-//! Identification of detent harmonics and friction (design.md §5). Under construction.
+//! Identification of the detent harmonics and the friction of a hybrid stepper motor
+//! (design.md §5, US 7,733,051 §A, claim 1), from servo-mode run logs of the simulator or
+//! of a real drive, and the motor profile that results.
+//!
+//! | module | what |
+//! |---|---|
+//! | [`log`] | read a run-log CSV (design.md §6); errors name the file, line and column |
+//! | [`kinematics`] | speed and acceleration from a quantised encoder angle |
+//! | [`lsq`] | least squares (QR + SVD) with a block-robust covariance |
+//! | [`fit`] | the torque balance fit: harmonics, `Fs`, `D`, intervals, warnings |
+//! | [`model`] | the identified model and the profile made from it |
+//! | [`plan`] | which runs to record and why; simulate them, write their logs |
+//! | [`refine`] | the patent's criterion: feed-forward on, remove the remaining ripple |
+//! | [`static_curve`] | torque-versus-angle table → FFT → harmonics |
+//! | [`spectrum`] | amplitude per harmonic order of a torque against angle (reports) |
+//!
+//! Sign conventions are the profile's: the detent torque on the rotor is
+//! `−Σ A_k sin(k·Nr·θ + φ_k)`, friction `−Fs·sgn(ω) − D·ω`; phases are in `(−π, π]`.
+//!
+//! ```
+//! use stepdamp_identify::{fit::{fit, FitOptions}, model::Model, plan::{plan, simulate_plan, PlanOptions}};
+//! use stepdamp_sim::{Compensation, Profile};
+//!
+//! let motor = Profile::preset("patent-motor").unwrap();
+//! // The runs to record (short ones here), simulated with current noise.
+//! let opts = PlanOptions { electrical_periods: 8.0, min_steady_s: 0.5, ..PlanOptions::default() };
+//! let p = plan(&motor, &opts)?;
+//! let logs = simulate_plan(&motor, &p.profile, Compensation::Off, &p, opts.current_noise_a, 1, &|| {})?;
+//! // Fit orders 1, 2, 4 and write the result into a profile.
+//! let f = fit(&logs, &FitOptions::for_profile(&p.profile, &[1, 2, 4]))?;
+//! let identified = Model::from_fit(&f).apply_to(&motor, Some("identified"), "identified.toml")?;
+//! let a4 = identified.motor.detent.iter().find(|h| h.order == 4).unwrap().amplitude_nm;
+//! assert!((a4 - 0.02).abs() < 0.001);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+pub mod fit;
+pub mod kinematics;
+pub mod log;
+pub mod lsq;
+pub mod model;
+pub mod plan;
+pub mod refine;
+pub mod spectrum;
+pub mod static_curve;
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,750 @@
+//! Least-squares identification of detent harmonics and friction from servo-mode logs
+//! (design.md §5).
+//!
+//! # Model
+//!
+//! With the rotor driven by a position servo, the torque the motor makes balances the
+//! detent, the friction and the inertia at every instant:
+//!
+//! ```text
+//! Km·i_q − J·dω/dt = Σ_k A_k sin(k·Nr·θ + φ_k) + Fs·sgn(ω) + D·ω + c
+//!                  = Σ_k [a_k sin(k·Nr·θ) + b_k cos(k·Nr·θ)] + Fs·sgn(ω) + D·ω + c
+//! ```
+//!
+//! with `a_k = A_k cos φ_k`, `b_k = A_k sin φ_k` (the profile's convention: the detent
+//! torque on the rotor is `−Σ A_k sin(k·Nr·θ + φ_k)`, so the motor must supply `+Σ…`), and
+//! `c` a constant torque (a load, or a current-sensor offset seen as torque), fitted only
+//! when both directions of travel are logged. Every term is linear in the unknowns, so one
+//! least-squares solve ([`crate::lsq`]) gives all of them with their covariance.
+//!
+//! # Choices
+//!
+//! * **`θ`** is the encoder angle `θ_fb`. Quantisation to `cpr` counts/rev smears each
+//!   regressor: averaged over a count, `E[sin(kθe)] = sinc(k·π·Nr/cpr)·sin(kθe_fb)`, so the
+//!   fitted `a_k, b_k` are divided by that factor (0.4 % for k = 4, Nr = 50, 4000 counts)
+//!   when [`FitOptions::correct_quantisation`] is set and the resolution is known.
+//! * **`J·dω/dt` is kept.** At the slow speeds identification uses, the servo does *not*
+//!   hold the speed: encoder-quantisation jitter and the detent make it ripple by tens of
+//!   percent, and the share of the detent torque that goes into accelerating the rotor is
+//!   `≈ (k·Nr·|ω| / ω_servo)²` (10 % at a third of the loop bandwidth). Dropping the term
+//!   biased harmonic amplitudes by 2–12 % in simulation; keeping it, by ≈ 1 %. `dω/dt`
+//!   comes from `θ_fb` smoothed with a zero-phase low-pass ([`crate::kinematics`]); `J`
+//!   from the profile (a relative error `x` in `J` moves the harmonics by about
+//!   `x ·` [`RunSummary::inertial_share`]).
+//! * **Friction columns use the run's mean speed** `ω̄` (the slope of the straight line
+//!   through `θ_fb(t)` over the steady window): `Fs·sgn(ω̄)`, `D·ω̄`. The viscous torque
+//!   of the speed ripple, `D·(ω − ω̄)`, is subtracted from the data with `D` from a first
+//!   pass (the fallback) and then from the fit itself (two passes). Letting the
+//!   instantaneous, smoothed `ω` carry the friction columns mixed the speed ripple into
+//!   `D` (+40 % and more) and `Fs` (−10 to −45 %) in simulation.
+//! * **Used samples**: the steady window of each log (from the first to the last sample at
+//!   ≥ 80 % of the mean speed, away from the filter's start-up: the start from rest, the
+//!   ramp and a final stop are dropped), minus samples where the rotor is (nearly) stopped,
+//!   `ω·sgn(ω̄) < ` [`FitOptions::min_speed_fraction`]`·|ω̄|`: there static friction holds
+//!   whatever torque is needed and the model does not apply.
+//! * **`D`** is fitted only when the logs hold at least two speeds (ratio ≥ 1.3); with one
+//!   speed `D·ω` is indistinguishable from `Fs`, so `D` is held at
+//!   [`FitOptions::viscous_fallback_nm_s_per_rad`] and a warning says so. The constant
+//!   torque `c` is fitted only with both directions; with one, `Fs` absorbs it.
+//!
+//! # Error bounds
+//!
+//! Confidence intervals (95 %, half-widths) come from the coefficient covariance of
+//! [`crate::lsq`] (the larger of the classical and the block-robust estimate, blocks of one
+//! electrical period), propagated to amplitude and phase by the delta method:
+//! `σ_A² = gᵀΣg` with `g = (a, b)/A`, `σ_φ² = hᵀΣh` with `h = (−b, a)/A²`. They cover
+//! measurement noise and loop jitter, **not bias**. Measured bias on the simulator with the
+//! plan of [`crate::plan`] (4000 counts, `Nr` = 50, current noise 0.01 A): order-4
+//! amplitudes ≈ 1–1.5 % low, orders 1–2 within 0.5 %, phases within 0.005 rad, `Fs` within
+//! 1.5 % (worst over 50 random motors); the bias falls roughly as `1/cpr²` (0.3 % at 8000
+//! counts) and refinement ([`crate::refine`]) removes it. A wrong `J` or `Km` scales the
+//! result; an order not fitted stays in the residual and does not leak into the others when
+//! the logs cover whole electrical periods. Runs too slow for the encoder (count rate below
+//! the servo bandwidth in rad/s) underestimate `Fs` by 10–40 %: see the warnings.
+//!
+//! # Cost
+//!
+//! `O(n·p²)` for `n` samples and `p` unknowns (QR), twice: ≈ 0.1 s for 200 000 samples and
+//! orders 1, 2, 4 in a release build.
+
+use crate::kinematics::{self, Kinematics};
+use crate::log::RunLog;
+use crate::lsq::{self, Design, LsqError};
+use std::f64::consts::{PI, TAU};
+use stepdamp_sim::Profile;
+
+/// Default harmonic orders of the fit.
+pub const DEFAULT_ORDERS: [u16; 3] = [1, 2, 4];
+
+/// Which signal is the loop's effort.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Effort {
+    /// The measured q current `i_q_a` (the torque the motor actually made).
+    #[default]
+    MeasuredIq,
+    /// The loop's q current command `iq_cmd_a` (what the loop asked for).
+    CommandIq,
+}
+
+/// Options of the fit.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FitOptions {
+    /// Harmonic orders `k` of the electrical angle to fit (distinct, ≥ 1).
+    pub orders: Vec<u16>,
+    /// Rotor pole pairs `Nr`.
+    pub pole_pairs: u16,
+    /// Torque constant `Km` in N·m/A.
+    pub km_nm_per_a: f64,
+    /// Rotor + load inertia `J` in kg·m² for the `J·dω/dt` term (0 = ignore inertia).
+    pub inertia_kg_m2: f64,
+    /// Encoder counts per revolution (for the quantisation correction and the smoothing
+    /// corner); `None` when unknown.
+    pub counts_per_rev: Option<u32>,
+    /// Servo position-loop bandwidth in Hz (for the "too fast" warning); `None` when unknown.
+    pub servo_bandwidth_hz: Option<f64>,
+    /// `D` in N·m·s/rad used when the logs cannot separate it from `Fs` (one speed).
+    pub viscous_fallback_nm_s_per_rad: f64,
+    /// Effort signal.
+    pub effort: Effort,
+    /// Samples with `|ω| <` this fraction of the log's mean speed are left out (stiction).
+    pub min_speed_fraction: f64,
+    /// Fewest electrical periods in each direction before a warning.
+    pub recommended_periods: f64,
+    /// Divide the harmonics by the encoder's averaging factor `sinc(k·π·Nr/cpr)` (see the
+    /// module documentation). Right for logs without feed-forward (the torque follows the
+    /// true angle); off for feed-forward-on logs, whose fixed point is the feed-forward in
+    /// the controller's own (quantised) angle.
+    pub correct_quantisation: bool,
+    /// Warn when more than this fraction of the encoder steps go against the direction of
+    /// travel (the servo's quantisation jitter reverses the rotor, and friction is then
+    /// underestimated).
+    pub max_back_step_fraction: f64,
+    /// Warn when `J·dω/dt` is more than this share of the fitted ripple.
+    pub max_inertial_share: f64,
+    /// Warn when a term's variance inflation factor exceeds this.
+    pub max_inflation: f64,
+}
+
+impl FitOptions {
+    /// Options for a motor profile (its `Km`, `Nr`, `J`, encoder, servo bandwidth and `D` as
+    /// the fallback) and the given orders.
+    pub fn for_profile(p: &Profile, orders: &[u16]) -> Self {
+        FitOptions {
+            orders: orders.to_vec(),
+            pole_pairs: p.motor.pole_pairs,
+            km_nm_per_a: p.motor.km_nm_per_a,
+            inertia_kg_m2: p.motor.inertia_kg_m2,
+            counts_per_rev: Some(p.encoder.counts_per_rev),
+            servo_bandwidth_hz: Some(p.servo.bandwidth_hz),
+            viscous_fallback_nm_s_per_rad: p.motor.viscous_nm_s_per_rad,
+            effort: Effort::MeasuredIq,
+            min_speed_fraction: 0.1,
+            recommended_periods: 10.0,
+            correct_quantisation: true,
+            max_back_step_fraction: 0.02,
+            max_inertial_share: 0.75,
+            max_inflation: 50.0,
+        }
+    }
+}
+
+/// A value with its 95 % confidence half-width.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Estimate {
+    /// The value.
+    pub value: f64,
+    /// Half-width of the 95 % confidence interval (same unit).
+    pub ci95: f64,
+}
+
+/// One identified detent harmonic.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HarmonicEstimate {
+    /// Order `k`.
+    pub order: u16,
+    /// Amplitude `A_k` in N·m with its 95 % half-width.
+    pub amplitude_nm: Estimate,
+    /// Phase `φ_k` in rad, in `(−π, π]`, profile convention, with its 95 % half-width.
+    pub phase_rad: Estimate,
+    /// `a_k = A_k cos φ_k` in N·m (coefficient of `sin kθe`).
+    pub a_nm: f64,
+    /// `b_k = A_k sin φ_k` in N·m (coefficient of `cos kθe`).
+    pub b_nm: f64,
+}
+
+/// What a log contributed.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunSummary {
+    /// Source name.
+    pub source: String,
+    /// Mean speed in rad/s (slope of the line through `θ_fb(t)`).
+    pub mean_speed_rad_s: f64,
+    /// Duration of the steady window used, s.
+    pub duration_s: f64,
+    /// Electrical periods in the steady window.
+    pub electrical_periods: f64,
+    /// Samples used in the fit.
+    pub samples_used: usize,
+    /// Samples in the log.
+    pub samples: usize,
+    /// Frequency of the highest fitted harmonic at the mean speed, Hz.
+    pub highest_harmonic_hz: f64,
+    /// RMS of `J·dω/dt` over RMS of the detent ripple fitted (0–1+): how much the loop
+    /// failed to hold the speed. A relative error `x` in `J` moves the harmonics by about
+    /// `x·share`.
+    pub inertial_share: f64,
+    /// Fraction of the encoder steps against the direction of travel.
+    pub back_step_fraction: f64,
+}
+
+/// Why the data cannot fully separate the model's terms (the fit still ran).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Warning {
+    /// Few electrical periods in a direction.
+    FewPeriods {
+        /// `forward` or `reverse`.
+        direction: &'static str,
+        /// Periods logged.
+        periods: f64,
+        /// Periods recommended.
+        recommended: f64,
+    },
+    /// Only one direction of travel: `Fs` (and `D`) absorb any constant torque.
+    OneDirection {
+        /// The direction logged.
+        direction: &'static str,
+    },
+    /// One speed only: `D` is not separable from `Fs`.
+    SingleSpeed {
+        /// The speed in rad/s.
+        speed_rad_s: f64,
+        /// The `D` used instead, N·m·s/rad.
+        viscous_used: f64,
+    },
+    /// A harmonic is too fast for the servo to follow.
+    TooFast {
+        /// Log.
+        source: String,
+        /// Harmonic order.
+        order: u16,
+        /// Its frequency at the log's speed, Hz.
+        harmonic_hz: f64,
+        /// Servo bandwidth, Hz.
+        bandwidth_hz: f64,
+    },
+    /// Inertia carries a large share of the ripple (the loop did not hold the speed).
+    InertialShare {
+        /// Log.
+        source: String,
+        /// Share (see [`RunSummary::inertial_share`]).
+        share: f64,
+    },
+    /// The encoder stepped backwards: servo jitter reverses the rotor faster than the
+    /// smoothed speed shows, so friction is underestimated.
+    Reversing {
+        /// Log.
+        source: String,
+        /// Fraction of encoder steps that went backwards.
+        fraction: f64,
+    },
+    /// The encoder counts slower than the servo reacts: quantisation jitter makes the rotor
+    /// stop and start within a count, and friction comes out low.
+    SlowForEncoder {
+        /// Log.
+        source: String,
+        /// Encoder counts per second at the log's speed.
+        count_rate_hz: f64,
+        /// Counts per second recommended: the servo bandwidth in rad/s.
+        needed_hz: f64,
+    },
+    /// Many samples left out because the rotor was (nearly) stopped.
+    Stalled {
+        /// Log.
+        source: String,
+        /// Fraction left out.
+        fraction: f64,
+    },
+    /// A term is strongly correlated with others.
+    Confounded {
+        /// The term.
+        term: String,
+        /// Its variance inflation factor.
+        inflation: f64,
+    },
+    /// A harmonic smaller than its own uncertainty.
+    NotSignificant {
+        /// Order.
+        order: u16,
+    },
+}
+
+impl std::fmt::Display for Warning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Warning::FewPeriods { direction, periods, recommended } => write!(
+                f,
+                "only {periods:.1} electrical periods logged {direction} (≥ {recommended:.0} recommended): harmonics are poorly averaged"
+            ),
+            Warning::OneDirection { direction } => write!(
+                f,
+                "only {direction} travel logged: Fs is confounded with any constant torque (load, current offset) and reported as the mean friction of that direction"
+            ),
+            Warning::SingleSpeed { speed_rad_s, viscous_used } => write!(
+                f,
+                "one speed only (|ω| ≈ {speed_rad_s:.3} rad/s): D cannot be separated from Fs; D held at {viscous_used:.3e} N·m·s/rad (log a second speed at least 1.3× apart)"
+            ),
+            Warning::TooFast { source, order, harmonic_hz, bandwidth_hz } => write!(
+                f,
+                "{source}: harmonic {order} at {harmonic_hz:.1} Hz is not well inside the servo bandwidth {bandwidth_hz:.0} Hz: the loop does not follow it and the result leans on J·dω/dt from the encoder (run slower)"
+            ),
+            Warning::InertialShare { source, share } => write!(
+                f,
+                "{source}: J·dω/dt is {:.0} % of the detent ripple (the loop did not hold the speed): a 10 % error in J moves the harmonics by about {:.0} %",
+                100.0 * share,
+                10.0 * share
+            ),
+            Warning::Reversing { source, fraction } => write!(
+                f,
+                "{source}: {:.1} % of the encoder steps go backwards: the servo's jitter reverses the rotor, so Fs comes out low (run faster: count rate ≥ servo bandwidth in rad/s, or soften the servo)",
+                100.0 * fraction
+            ),
+            Warning::SlowForEncoder { source, count_rate_hz, needed_hz } => write!(
+                f,
+                "{source}: the encoder counts {count_rate_hz:.0} times/s, fewer than the servo bandwidth in rad/s ({needed_hz:.0}): quantisation jitter stalls the rotor within a count and Fs comes out low (run faster)"
+            ),
+            Warning::Stalled { source, fraction } => write!(
+                f,
+                "{source}: rotor nearly stopped in {:.0} % of the samples (left out: static friction)",
+                100.0 * fraction
+            ),
+            Warning::Confounded { term, inflation } => write!(
+                f,
+                "{term} is hard to separate from the other terms (variance inflation {inflation:.0}); its interval is wide"
+            ),
+            Warning::NotSignificant { order } => {
+                write!(f, "harmonic {order} is smaller than its own 95 % interval: not detected")
+            }
+        }
+    }
+}
+
+/// Result of a fit.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Fit {
+    /// Harmonics in the order asked for.
+    pub harmonics: Vec<HarmonicEstimate>,
+    /// Coulomb friction `Fs` in N·m.
+    pub coulomb_friction_nm: Estimate,
+    /// Viscous friction `D` in N·m·s/rad; `None` when not separable (the fallback was used).
+    pub viscous_nm_s_per_rad: Option<Estimate>,
+    /// `D` used in the model (fitted or the fallback), N·m·s/rad.
+    pub viscous_used: f64,
+    /// Constant torque `c` in N·m (both directions logged only).
+    pub offset_nm: Option<Estimate>,
+    /// RMS of the fit residual in N·m.
+    pub residual_rms_nm: f64,
+    /// RMS of the fitted detent ripple `Σ A sin(…)` over the samples, N·m.
+    pub ripple_rms_nm: f64,
+    /// Samples used.
+    pub samples_used: usize,
+    /// Condition number of the scaled regressors.
+    pub condition: f64,
+    /// Per-log summaries.
+    pub runs: Vec<RunSummary>,
+    /// Warnings.
+    pub warnings: Vec<Warning>,
+    /// The samples used, for reports: electrical angle `Nr·θ_fb` (rad, wrapped to
+    /// `[0, 2π)`), the torque the model explains (`Km·i − J·α` minus friction and `c`,
+    /// N·m), and the residual (N·m).
+    pub samples: FitSamples,
+}
+
+/// Per-sample data of a fit (for plots and spectra).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FitSamples {
+    /// Electrical angle in rad, `[0, 2π)`.
+    pub theta_e_rad: Vec<f64>,
+    /// Periodic part of the needed torque (needed torque minus friction and offset), N·m.
+    pub ripple_nm: Vec<f64>,
+    /// Residual of the fit, N·m.
+    pub residual_nm: Vec<f64>,
+}
+
+/// Why a fit could not be made.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FitError {
+    /// No logs given.
+    #[error("no logs to fit")]
+    NoLogs,
+    /// Bad options.
+    #[error("{0}")]
+    Options(String),
+    /// A log without motion.
+    #[error("{log}: the rotor does not move (mean speed {speed:.3e} rad/s): identification needs constant-speed runs")]
+    NoMotion {
+        /// Log.
+        log: String,
+        /// Its mean speed.
+        speed: f64,
+    },
+    /// Too few usable samples, or the terms cannot be separated at all.
+    #[error("least squares failed: {0}")]
+    Lsq(#[from] LsqError),
+}
+
+/// Wraps an angle to `(−π, π]`.
+pub fn wrap_pi(x: f64) -> f64 {
+    let y = x.rem_euclid(TAU);
+    if y > PI { y - TAU } else { y }
+}
+
+/// `sin(x)/x`.
+fn sinc(x: f64) -> f64 {
+    if x.abs() < 1e-9 { 1.0 } else { x.sin() / x }
+}
+
+impl FitOptions {
+    fn check(&self) -> Result<(), FitError> {
+        let bad = |m: String| Err(FitError::Options(m));
+        if self.orders.is_empty() {
+            return bad("no harmonic orders to fit".into());
+        }
+        for (i, &k) in self.orders.iter().enumerate() {
+            if k == 0 || usize::from(k) > stepdamp_core::MAX_HARMONIC_ORDER {
+                return bad(format!("harmonic order {k}: must be in 1..={}", stepdamp_core::MAX_HARMONIC_ORDER));
+            }
+            if self.orders[..i].contains(&k) {
+                return bad(format!("harmonic order {k} is listed twice"));
+            }
+        }
+        if self.pole_pairs == 0 {
+            return bad("pole pairs must be ≥ 1".into());
+        }
+        if !(self.km_nm_per_a.is_finite() && self.km_nm_per_a > 0.0) {
+            return bad(format!("Km = {}: must be > 0", self.km_nm_per_a));
+        }
+        if !(self.inertia_kg_m2.is_finite() && self.inertia_kg_m2 >= 0.0) {
+            return bad(format!("J = {}: must be ≥ 0", self.inertia_kg_m2));
+        }
+        if !(self.min_speed_fraction.is_finite() && (0.0..1.0).contains(&self.min_speed_fraction)) {
+            return bad(format!("min_speed_fraction = {}: must be in [0, 1)", self.min_speed_fraction));
+        }
+        Ok(())
+    }
+}
+
+/// A log with its kinematics and the window of it that is used.
+struct Prepared<'a> {
+    log: &'a RunLog,
+    kin: Kinematics,
+    /// Used window `[lo, hi)`: steady running, away from the filter's start-up.
+    lo: usize,
+    hi: usize,
+    /// Mean speed over the window, rad/s.
+    speed: f64,
+    /// Electrical periods over the window.
+    periods: f64,
+    /// Encoder steps against the direction of travel in the window, and all steps.
+    back_steps: usize,
+    steps: usize,
+}
+
+fn prepare<'a>(log: &'a RunLog, o: &FitOptions, kmax: u16) -> Result<Prepared<'a>, FitError> {
+    let n = log.len();
+    let nr = f64::from(o.pole_pairs);
+    let no_motion = |speed: f64| FitError::NoMotion { log: log.source.clone(), speed };
+    if n < 16 {
+        return Err(no_motion(0.0));
+    }
+    let ts = kinematics::median_step(&log.t_s);
+    let (_, _, w_all) = kinematics::line_fit(&log.t_s, &log.theta_fb_rad);
+    let moved = w_all.abs() * log.duration_s() * nr;
+    if moved.is_nan() || moved <= TAU {
+        return Err(no_motion(w_all));
+    }
+    let fc = kinematics::corner_hz(w_all, o.counts_per_rev, kmax, o.pole_pairs, 1.0 / ts);
+    let kin = kinematics::estimate(&log.t_s, &log.theta_fb_rad, fc);
+    // Steady window: from the first to the last sample running at ≥ 80 % of the mean speed
+    // in its direction (drops the start from rest, the ramp and a final stop).
+    let running = |i: &usize| kin.omega_rad_s[*i] * w_all.signum() >= 0.8 * w_all.abs();
+    let (e0, e1) = (kin.edge.min(n), n.saturating_sub(kin.edge));
+    let lo = (e0..e1).find(running);
+    let hi = (e0..e1).rev().find(running).map(|i| i + 1);
+    let (lo, hi) = match (lo, hi) {
+        (Some(a), Some(b)) if b > a + 16 => (a, b),
+        _ => return Err(no_motion(w_all)),
+    };
+    let (_, _, speed) = kinematics::line_fit(&log.t_s[lo..hi], &log.theta_fb_rad[lo..hi]);
+    let periods = nr * (log.theta_fb_rad[hi - 1] - log.theta_fb_rad[lo]).abs() / TAU;
+    let (mut back_steps, mut steps) = (0, 0);
+    for w in log.theta_fb_rad[lo..hi].windows(2) {
+        let d = w[1] - w[0];
+        if d != 0.0 {
+            steps += 1;
+            if d * speed < 0.0 {
+                back_steps += 1;
+            }
+        }
+    }
+    Ok(Prepared { log, kin, lo, hi, speed, periods, back_steps, steps })
+}
+
+/// Fits the model to the logs.
+///
+/// Two passes: the first subtracts the viscous torque of the speed ripple,
+/// `D·(ω − ω̄)`, with [`FitOptions::viscous_fallback_nm_s_per_rad`]; the second with the
+/// `D` the first found (when it could be fitted).
+pub fn fit(logs: &[RunLog], o: &FitOptions) -> Result<Fit, FitError> {
+    o.check()?;
+    if logs.is_empty() {
+        return Err(FitError::NoLogs);
+    }
+    let kmax = *o.orders.iter().max().expect("checked non-empty");
+    let prepared = logs.iter().map(|l| prepare(l, o, kmax)).collect::<Result<Vec<_>, _>>()?;
+    let first = fit_prepared(&prepared, o, o.viscous_fallback_nm_s_per_rad)?;
+    match first.viscous_nm_s_per_rad {
+        Some(d) => fit_prepared(&prepared, o, d.value.max(0.0)),
+        None => Ok(first),
+    }
+}
+
+fn fit_prepared(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Result<Fit, FitError> {
+    let nr = f64::from(o.pole_pairs);
+    let kmax = *o.orders.iter().max().expect("checked non-empty");
+
+    // Which terms the data can separate.
+    let mut warnings = Vec::new();
+    let (mut fwd_periods, mut rev_periods) = (0.0, 0.0);
+    for p in prepared {
+        if p.speed > 0.0 {
+            fwd_periods += p.periods;
+        } else {
+            rev_periods += p.periods;
+        }
+    }
+    let both = fwd_periods > 0.0 && rev_periods > 0.0;
+    if !both {
+        warnings.push(Warning::OneDirection { direction: if fwd_periods > 0.0 { "forward" } else { "reverse" } });
+    }
+    for (dir, per) in [("forward", fwd_periods), ("reverse", rev_periods)] {
+        if per > 0.0 && per < o.recommended_periods {
+            warnings.push(Warning::FewPeriods { direction: dir, periods: per, recommended: o.recommended_periods });
+        }
+    }
+    let (smin, smax) =
+        prepared.iter().map(|p| p.speed.abs()).fold((f64::INFINITY, 0.0f64), |(a, b), s| (a.min(s), b.max(s)));
+    let fit_d = smax >= 1.3 * smin;
+    if !fit_d {
+        warnings.push(Warning::SingleSpeed { speed_rad_s: smax, viscous_used: o.viscous_fallback_nm_s_per_rad });
+    }
+
+    // Columns: a_k, b_k per order; Fs; [D]; [c].
+    let nh = o.orders.len();
+    let col_fs = 2 * nh;
+    let col_d = fit_d.then_some(col_fs + 1);
+    let col_c = both.then_some(col_fs + 1 + usize::from(fit_d));
+    let p = col_fs + 1 + usize::from(fit_d) + usize::from(both);
+    let total: usize = prepared.iter().map(|p| p.hi - p.lo).sum();
+    let mut design = Design::new(p);
+    design.x.reserve(total * p);
+    design.y.reserve(total);
+    design.block.reserve(total);
+    let mut theta_e_used = Vec::with_capacity(total);
+    let mut inertial = Vec::with_capacity(total);
+    let mut row = vec![0.0; p];
+    let mut block_base = 0u32;
+    let mut runs = Vec::new();
+    let d_fixed = if fit_d { 0.0 } else { o.viscous_fallback_nm_s_per_rad };
+    for prep in prepared {
+        let (log, kin) = (prep.log, &prep.kin);
+        let effort = match o.effort {
+            Effort::MeasuredIq => &log.i_q_a,
+            Effort::CommandIq => log.iq_cmd_a.as_ref().ok_or_else(|| {
+                FitError::Options(format!("{}: no iq_cmd_a column, needed for the command effort", log.source))
+            })?,
+        };
+        let wbar = prep.speed;
+        let vmin = o.min_speed_fraction * wbar.abs();
+        // Blocks of one electrical period (at least 10 blocks per log).
+        let span = (log.theta_fb_rad[prep.hi - 1] - log.theta_fb_rad[prep.lo]).abs();
+        let per_block = if prep.periods >= 10.0 { TAU / nr } else { span / 10.0 }.max(f64::MIN_POSITIVE);
+        let th0 = log.theta_fb_rad[prep.lo];
+        let (mut used, mut stalled, mut max_block) = (0usize, 0usize, 0u32);
+        #[allow(clippy::needless_range_loop)] // five parallel arrays are read at i
+        for i in prep.lo..prep.hi {
+            let w = kin.omega_rad_s[i];
+            if w * wbar.signum() < vmin {
+                stalled += 1;
+                continue;
+            }
+            let th = log.theta_fb_rad[i];
+            let te = nr * th;
+            let (s1, c1) = te.sin_cos();
+            for (j, &k) in o.orders.iter().enumerate() {
+                let (s, c) = if k == 1 { (s1, c1) } else { (f64::from(k) * te).sin_cos() };
+                row[2 * j] = s;
+                row[2 * j + 1] = c;
+            }
+            row[col_fs] = wbar.signum();
+            if let Some(cd) = col_d {
+                row[cd] = wbar;
+            }
+            if let Some(cc) = col_c {
+                row[cc] = 1.0;
+            }
+            let j_alpha = o.inertia_kg_m2 * kin.alpha_rad_s2[i];
+            let y = o.km_nm_per_a * effort[i] - j_alpha - d_ripple * (w - wbar) - d_fixed * wbar;
+            let b = ((th - th0).abs() / per_block) as u32;
+            max_block = max_block.max(b);
+            design.push(&row, y, block_base + b);
+            theta_e_used.push(te.rem_euclid(TAU));
+            inertial.push(j_alpha);
+            used += 1;
+        }
+        block_base += max_block + 1;
+        let considered = (prep.hi - prep.lo).max(1);
+        let fraction = stalled as f64 / considered as f64;
+        if fraction > 0.02 {
+            warnings.push(Warning::Stalled { source: log.source.clone(), fraction });
+        }
+        let back = prep.back_steps as f64 / prep.steps.max(1) as f64;
+        if back > o.max_back_step_fraction {
+            warnings.push(Warning::Reversing { source: log.source.clone(), fraction: back });
+        }
+        let highest_harmonic_hz = f64::from(kmax) * nr * wbar.abs() / TAU;
+        if let (Some(bw), Some(cpr)) = (o.servo_bandwidth_hz, o.counts_per_rev) {
+            let count_rate = f64::from(cpr) * wbar.abs() / TAU;
+            if count_rate < 0.7 * TAU * bw {
+                warnings.push(Warning::SlowForEncoder {
+                    source: log.source.clone(),
+                    count_rate_hz: count_rate,
+                    needed_hz: TAU * bw,
+                });
+            }
+        }
+        if let Some(bw) = o.servo_bandwidth_hz
+            && highest_harmonic_hz > 0.8 * bw
+        {
+            warnings.push(Warning::TooFast {
+                source: log.source.clone(),
+                order: kmax,
+                harmonic_hz: highest_harmonic_hz,
+                bandwidth_hz: bw,
+            });
+        }
+        runs.push(RunSummary {
+            source: log.source.clone(),
+            mean_speed_rad_s: wbar,
+            duration_s: log.t_s[prep.hi - 1] - log.t_s[prep.lo],
+            electrical_periods: prep.periods,
+            samples_used: used,
+            samples: log.len(),
+            highest_harmonic_hz,
+            inertial_share: 0.0,
+            back_step_fraction: back,
+        });
+    }
+    let sol = lsq::solve(&design)?;
+
+    // Quantisation correction of the harmonic regressors.
+    let gain = |k: u16| match o.counts_per_rev {
+        Some(cpr) if o.correct_quantisation => sinc(f64::from(k) * PI * nr / f64::from(cpr)),
+        _ => 1.0,
+    };
+    let mut harmonics = Vec::with_capacity(nh);
+    for (j, &k) in o.orders.iter().enumerate() {
+        let g = gain(k);
+        let (a, b) = (sol.beta[2 * j] / g, sol.beta[2 * j + 1] / g);
+        let g2 = g * g;
+        let (vaa, vab, vbb) =
+            (sol.cov[(2 * j, 2 * j)] / g2, sol.cov[(2 * j, 2 * j + 1)] / g2, sol.cov[(2 * j + 1, 2 * j + 1)] / g2);
+        let (amplitude, phase) = polar_with_ci(a, b, vaa, vab, vbb);
+        if amplitude.value < amplitude.ci95 {
+            warnings.push(Warning::NotSignificant { order: k });
+        }
+        harmonics.push(HarmonicEstimate { order: k, amplitude_nm: amplitude, phase_rad: phase, a_nm: a, b_nm: b });
+    }
+    let est = |c: usize| Estimate { value: sol.beta[c], ci95: 1.96 * sol.cov[(c, c)].max(0.0).sqrt() };
+    let coulomb = est(col_fs);
+    let viscous = col_d.map(est);
+    let offset = col_c.map(est);
+    for (c, name) in [(Some(col_fs), "Fs"), (col_d, "D"), (col_c, "the constant torque")] {
+        if let Some(c) = c
+            && sol.inflation[c] > o.max_inflation
+        {
+            warnings.push(Warning::Confounded { term: name.to_string(), inflation: sol.inflation[c] });
+        }
+    }
+    for (j, &k) in o.orders.iter().enumerate() {
+        let inf = sol.inflation[2 * j].max(sol.inflation[2 * j + 1]);
+        if inf > o.max_inflation {
+            warnings.push(Warning::Confounded { term: format!("harmonic {k}"), inflation: inf });
+        }
+    }
+
+    // Periodic part and per-log inertial share.
+    let mut ripple = Vec::with_capacity(sol.residual.len());
+    let mut fitted_ss = 0.0;
+    let mut start = 0;
+    for run in runs.iter_mut() {
+        let (mut s_inertial, mut s_fit) = (0.0, 0.0);
+        #[allow(clippy::needless_range_loop)] // three parallel arrays are read at i
+        for i in start..start + run.samples_used {
+            let xrow = &design.x[i * p..(i + 1) * p];
+            let fitted: f64 = (0..2 * nh).map(|c| xrow[c] * sol.beta[c]).sum();
+            ripple.push(fitted + sol.residual[i]);
+            s_inertial += inertial[i] * inertial[i];
+            s_fit += fitted * fitted;
+        }
+        fitted_ss += s_fit;
+        run.inertial_share = if s_fit > 0.0 { (s_inertial / s_fit).sqrt() } else { 0.0 };
+        if run.inertial_share > o.max_inertial_share {
+            warnings.push(Warning::InertialShare { source: run.source.clone(), share: run.inertial_share });
+        }
+        start += run.samples_used;
+    }
+    Ok(Fit {
+        harmonics,
+        coulomb_friction_nm: coulomb,
+        viscous_used: viscous.map_or(o.viscous_fallback_nm_s_per_rad, |v| v.value),
+        viscous_nm_s_per_rad: viscous,
+        offset_nm: offset,
+        residual_rms_nm: sol.residual_rms,
+        ripple_rms_nm: (fitted_ss / ripple.len().max(1) as f64).sqrt(),
+        samples_used: sol.residual.len(),
+        condition: sol.condition,
+        runs,
+        warnings,
+        samples: FitSamples { theta_e_rad: theta_e_used, ripple_nm: ripple, residual_nm: sol.residual },
+    })
+}
+
+/// Amplitude and phase of `a sin x + b cos x = A sin(x + φ)` with 95 % half-widths by the
+/// delta method from the covariance `[[vaa, vab], [vab, vbb]]` of `(a, b)`.
+pub fn polar_with_ci(a: f64, b: f64, vaa: f64, vab: f64, vbb: f64) -> (Estimate, Estimate) {
+    let amp = a.hypot(b);
+    let (sd_a, sd_p) = if amp > 0.0 {
+        let (ga, gb) = (a / amp, b / amp);
+        let (ha, hb) = (-b / (amp * amp), a / (amp * amp));
+        (
+            (ga * ga * vaa + 2.0 * ga * gb * vab + gb * gb * vbb).max(0.0).sqrt(),
+            (ha * ha * vaa + 2.0 * ha * hb * vab + hb * hb * vbb).max(0.0).sqrt(),
+        )
+    } else {
+        ((vaa + vbb).max(0.0).sqrt(), PI)
+    };
+    (Estimate { value: amp, ci95: 1.96 * sd_a }, Estimate { value: wrap_pi(b.atan2(a)), ci95: (1.96 * sd_p).min(PI) })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wrap_pi_maps_into_the_half_open_interval() {
+        assert_eq!(wrap_pi(PI), PI);
+        assert_eq!(wrap_pi(-PI), PI);
+        assert!((wrap_pi(3.0 * PI / 2.0) + PI / 2.0).abs() < 1e-12);
+        assert!((wrap_pi(0.3) - 0.3).abs() < 1e-15);
+    }
+}

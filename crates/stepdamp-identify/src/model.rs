@@ -1,0 +1,123 @@
+//! The identified model (detent harmonics, `Fs`, `D`) and the motor profile made from it.
+
+use crate::fit::Fit;
+use stepdamp_sim::profile::DetentTerm;
+use stepdamp_sim::{Profile, ProfileError};
+
+/// What identification produces: the detent series and the friction, in the profile's
+/// conventions (torque on the rotor `−Σ A_k sin(k·Nr·θ + φ_k)`, friction
+/// `−Fs·sgn(ω) − D·ω`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Model {
+    /// Detent harmonics, in the order they were asked for.
+    pub detent: Vec<DetentTerm>,
+    /// Coulomb friction `Fs` in N·m (≥ 0).
+    pub coulomb_friction_nm: f64,
+    /// Viscous friction `D` in N·m·s/rad (≥ 0).
+    pub viscous_nm_s_per_rad: f64,
+}
+
+impl Model {
+    /// The model a fit found. Negative friction estimates (noise around zero) become 0.
+    pub fn from_fit(f: &Fit) -> Model {
+        Model {
+            detent: f
+                .harmonics
+                .iter()
+                .map(|h| DetentTerm {
+                    order: h.order,
+                    amplitude_nm: h.amplitude_nm.value,
+                    phase_rad: h.phase_rad.value,
+                })
+                .collect(),
+            coulomb_friction_nm: f.coulomb_friction_nm.value.max(0.0),
+            viscous_nm_s_per_rad: f.viscous_used.max(0.0),
+        }
+    }
+
+    /// The model of a profile (its detent list and friction).
+    pub fn of_profile(p: &Profile) -> Model {
+        Model {
+            detent: p.motor.detent.clone(),
+            coulomb_friction_nm: p.motor.coulomb_friction_nm,
+            viscous_nm_s_per_rad: p.motor.viscous_nm_s_per_rad,
+        }
+    }
+
+    /// `base` with `motor.detent`, `motor.coulomb_friction_nm` and
+    /// `motor.viscous_nm_s_per_rad` replaced by this model, validated. Everything else
+    /// (drive, encoder, servo, inertia, Km) is kept. `name` replaces the profile's name when
+    /// given.
+    pub fn apply_to(&self, base: &Profile, name: Option<&str>, origin: &str) -> Result<Profile, ProfileError> {
+        let mut p = base.clone();
+        p.motor.detent = self.detent.clone();
+        p.motor.coulomb_friction_nm = self.coulomb_friction_nm;
+        p.motor.viscous_nm_s_per_rad = self.viscous_nm_s_per_rad;
+        if let Some(n) = name {
+            p.name = n.to_string();
+        }
+        p.validate(origin)?;
+        Ok(p)
+    }
+
+    /// RMS over an electrical period of `Σ A_k sin(kθe + φ_k)`: `√(Σ A_k²/2)`, N·m.
+    pub fn ripple_rms_nm(&self) -> f64 {
+        (self.detent.iter().map(|h| h.amplitude_nm * h.amplitude_nm).sum::<f64>() / 2.0).sqrt()
+    }
+
+    /// RMS over an electrical period of the difference of two detent series (orders missing
+    /// in one count as zero there), N·m.
+    pub fn ripple_difference_rms_nm(&self, other: &Model) -> f64 {
+        let mut orders: Vec<u16> = self.detent.iter().chain(&other.detent).map(|h| h.order).collect();
+        orders.sort_unstable();
+        orders.dedup();
+        let ab = |m: &Model, k: u16| {
+            m.detent
+                .iter()
+                .find(|h| h.order == k)
+                .map_or((0.0, 0.0), |h| (h.amplitude_nm * h.phase_rad.cos(), h.amplitude_nm * h.phase_rad.sin()))
+        };
+        let ss: f64 = orders
+            .iter()
+            .map(|&k| {
+                let ((a1, b1), (a2, b2)) = (ab(self, k), ab(other, k));
+                (a1 - a2).powi(2) + (b1 - b2).powi(2)
+            })
+            .sum();
+        (ss / 2.0).sqrt()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn applying_a_model_replaces_only_detent_and_friction_and_validates() {
+        let base = Profile::preset("nema23-57mm").unwrap();
+        let m = Model {
+            detent: vec![DetentTerm { order: 4, amplitude_nm: 0.03, phase_rad: 0.1 }],
+            coulomb_friction_nm: 0.02,
+            viscous_nm_s_per_rad: 0.002,
+        };
+        let p = m.apply_to(&base, Some("x"), "out.toml").unwrap();
+        assert_eq!(p.motor.detent, m.detent);
+        assert_eq!((p.motor.coulomb_friction_nm, p.motor.viscous_nm_s_per_rad), (0.02, 0.002));
+        assert_eq!((p.name.as_str(), &p.drive, p.motor.inertia_kg_m2), ("x", &base.drive, base.motor.inertia_kg_m2));
+        let bad = Model { coulomb_friction_nm: f64::NAN, ..m };
+        let e = bad.apply_to(&base, None, "out.toml").unwrap_err().to_string();
+        assert!(e.contains("out.toml") && e.contains("coulomb_friction_nm"), "{e}");
+    }
+
+    #[test]
+    fn ripple_difference_counts_missing_orders_as_zero() {
+        let a = Model {
+            detent: vec![DetentTerm { order: 4, amplitude_nm: 0.02, phase_rad: 0.0 }],
+            coulomb_friction_nm: 0.0,
+            viscous_nm_s_per_rad: 0.0,
+        };
+        let b = Model { detent: vec![], ..a.clone() };
+        assert!((a.ripple_difference_rms_nm(&b) - a.ripple_rms_nm()).abs() < 1e-15);
+        assert!(a.ripple_difference_rms_nm(&a) < 1e-15);
+    }
+}

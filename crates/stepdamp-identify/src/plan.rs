@@ -1,0 +1,452 @@
+//! The experiment plan: which servo-mode runs to record for identification, and why; and
+//! running them on the simulator.
+//!
+//! # The rules (measured on the simulator, 50 random motors; see the tests)
+//!
+//! 1. **Servo stiffness.** The detent has negative stiffness up to
+//!    `S = Σ_k k·Nr·A_k` (N·m/rad) at some angles. A position loop softer than that lets the
+//!    rotor snap from detent well to detent well (stick–slip, speed swinging from 0 to 3×
+//!    the command), and the identification then rests on a violent `J·dω/dt`. The plan sets
+//!    the position-loop bandwidth so that its stiffness `J·ω_b²` is at least
+//!    [`PlanOptions::stiffness_margin`]` × S` (2 by default), and at least
+//!    [`PlanOptions::min_servo_bandwidth_hz`]. `A_k` comes from the base profile; when it
+//!    has no detent, typical values are assumed (design.md §7): `A_4` 5 %, `A_2` 2.5 %,
+//!    `A_1` 1.5 % of the holding torque `√2·Km·I_hold`. The velocity filter is put at the
+//!    loop bandwidth: a higher corner passes more encoder-quantisation noise into the
+//!    torque, a lower one costs phase margin.
+//! 2. **Slowest speed.** An encoder servo at speed `ω` sees a new count every
+//!    `2π/(cpr·ω)` s. If that is longer than the loop's time constant `1/ω_b`, the loop
+//!    reacts to every count: quantisation jitter stops and restarts the rotor inside a
+//!    count, static friction takes over, and `Fs` comes out 10–40 % low (measured). So the
+//!    slow run has a count rate equal to `ω_b` (in rad/s): `ω_lo = ω_b·2π/cpr`.
+//! 3. **Second speed.** `ω_hi = 2·ω_lo` separates `D` from `Fs` (with one speed they are
+//!    confounded). It keeps the highest harmonic `k_max·Nr·ω_hi` within the loop's
+//!    bandwidth for `k_max = 4`, 4000 counts and `Nr = 50` (0.63 `f_b`); what the loop does
+//!    not follow is measured through `J·dω/dt`.
+//! 4. **Both directions** at each speed: separates `Fs·sgn(ω)` from a constant torque (a
+//!    load or a current offset) and averages direction-dependent effects.
+//! 5. **Duration**: [`PlanOptions::electrical_periods`] electrical periods (40 by default)
+//!    of steady running at the run's speed, at least [`PlanOptions::min_steady_s`], after a
+//!    50 ms standstill and a 0.1 s ramp. The fit averages whole periods; more periods
+//!    shrink the noise as `1/√periods`.
+
+use crate::log::RunLog;
+use rayon::prelude::*;
+use std::f64::consts::TAU;
+use std::path::{Path, PathBuf};
+use stepdamp_core::Mode;
+use stepdamp_sim::profile::DetentTerm;
+use stepdamp_sim::runlog::{LogRow, write_csv};
+use stepdamp_sim::{ClosedLoop, Compensation, Profile, RunSpec, SimError, SimOptions, run};
+
+/// Options of the plan and of its simulation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlanOptions {
+    /// Harmonic orders to be identified (the highest one is checked against the loop).
+    pub orders: Vec<u16>,
+    /// Servo stiffness over the detent's largest negative stiffness (≥ 1).
+    pub stiffness_margin: f64,
+    /// Lowest position-loop bandwidth in Hz.
+    pub min_servo_bandwidth_hz: f64,
+    /// Electrical periods of steady running per run.
+    pub electrical_periods: f64,
+    /// Shortest steady part of a run, s.
+    pub min_steady_s: f64,
+    /// Current-sensor noise of the simulation, standard deviation in A.
+    pub current_noise_a: f64,
+    /// Base seed of the simulation's noise (each run gets its own, derived from it).
+    pub seed: u64,
+}
+
+impl Default for PlanOptions {
+    fn default() -> Self {
+        PlanOptions {
+            orders: crate::fit::DEFAULT_ORDERS.to_vec(),
+            stiffness_margin: 2.0,
+            min_servo_bandwidth_hz: 60.0,
+            electrical_periods: 40.0,
+            min_steady_s: 2.0,
+            current_noise_a: 0.01,
+            seed: 1,
+        }
+    }
+}
+
+/// One run to record.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlannedRun {
+    /// File stem of its log, e.g. `run-1-fwd-1.017rad_s`.
+    pub name: String,
+    /// Commanded speed in rad/s (sign = direction).
+    pub speed_rad_s: f64,
+    /// Standstill before the ramp, s.
+    pub dwell_s: f64,
+    /// Ramp from rest, s.
+    pub ramp_s: f64,
+    /// Total duration, s.
+    pub duration_s: f64,
+    /// Why this run.
+    pub reason: String,
+}
+
+/// The plan.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Plan {
+    /// The base profile with the servo settings of the plan (what the drive must run).
+    pub profile: Profile,
+    /// Position-loop bandwidth in Hz.
+    pub servo_bandwidth_hz: f64,
+    /// Velocity filter corner in Hz.
+    pub velocity_filter_hz: f64,
+    /// The detent stiffness bound `S = Σ k·Nr·A_k` used, N·m/rad.
+    pub detent_stiffness_nm_per_rad: f64,
+    /// Whether `S` came from the profile (else assumed typical values).
+    pub detent_from_profile: bool,
+    /// Why these servo settings.
+    pub servo_reason: String,
+    /// The runs.
+    pub runs: Vec<PlannedRun>,
+    /// Cautions (e.g. a harmonic beyond the loop's bandwidth).
+    pub notes: Vec<String>,
+}
+
+impl Plan {
+    /// The plan as text: settings, runs with their reasons, notes.
+    pub fn describe(&self) -> String {
+        use std::fmt::Write;
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            "identification plan for {}: servo mode, detent compensation off, {} encoder counts/rev",
+            self.profile.name, self.profile.encoder.counts_per_rev
+        );
+        let _ = writeln!(
+            s,
+            "servo: position-loop bandwidth {:.1} Hz, velocity filter {:.1} Hz",
+            self.servo_bandwidth_hz, self.velocity_filter_hz
+        );
+        let _ = writeln!(s, "  why: {}", self.servo_reason);
+        let _ = writeln!(s, "runs:");
+        for r in &self.runs {
+            let _ = writeln!(
+                s,
+                "  {:<28} {:+8.4} rad/s  {:6.2} s (standstill {:.2} s, ramp {:.2} s)",
+                r.name, r.speed_rad_s, r.duration_s, r.dwell_s, r.ramp_s
+            );
+            let _ = writeln!(s, "      why: {}", r.reason);
+        }
+        for n in &self.notes {
+            let _ = writeln!(s, "note: {n}");
+        }
+        s
+    }
+
+    /// Total simulated time, s.
+    pub fn total_s(&self) -> f64 {
+        self.runs.iter().map(|r| r.duration_s).sum()
+    }
+}
+
+/// Why the plan could not be made or run.
+#[derive(Debug, thiserror::Error)]
+pub enum PlanError {
+    /// Bad options.
+    #[error("{0}")]
+    Options(String),
+    /// The simulator refused the set-up.
+    #[error("simulator: {0}")]
+    Sim(#[from] SimError),
+    /// A file could not be written.
+    #[error("{path}: cannot write: {source}")]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+}
+
+/// Typical detent when the profile has none (design.md §7): `A_4` 5 %, `A_2` 2.5 %,
+/// `A_1` 1.5 % of the two-phase holding torque `√2·Km·I_hold`.
+pub fn assumed_detent(p: &Profile) -> Vec<DetentTerm> {
+    let hold = std::f64::consts::SQRT_2 * p.motor.km_nm_per_a * p.drive.holding_current_a;
+    [(4, 0.05), (2, 0.025), (1, 0.015)]
+        .iter()
+        .map(|&(order, f)| DetentTerm { order, amplitude_nm: f * hold, phase_rad: 0.0 })
+        .collect()
+}
+
+/// Makes the plan for a base profile.
+pub fn plan(base: &Profile, o: &PlanOptions) -> Result<Plan, PlanError> {
+    let bad = |m: String| Err(PlanError::Options(m));
+    if !(o.stiffness_margin.is_finite() && o.stiffness_margin >= 1.0) {
+        return bad(format!("stiffness margin {}: must be ≥ 1", o.stiffness_margin));
+    }
+    if !(o.min_servo_bandwidth_hz.is_finite() && o.min_servo_bandwidth_hz > 0.0) {
+        return bad(format!("minimum servo bandwidth {} Hz: must be > 0", o.min_servo_bandwidth_hz));
+    }
+    if !(o.electrical_periods.is_finite() && (2.0..=1e5).contains(&o.electrical_periods)) {
+        return bad(format!("{} electrical periods per run: must be in 2..=100000", o.electrical_periods));
+    }
+    if !(o.min_steady_s.is_finite() && o.min_steady_s >= 0.0) {
+        return bad(format!("minimum steady time {} s: must be ≥ 0", o.min_steady_s));
+    }
+    if !(o.current_noise_a.is_finite() && o.current_noise_a >= 0.0) {
+        return bad(format!("current noise {} A: must be ≥ 0", o.current_noise_a));
+    }
+    let Some(&kmax) = o.orders.iter().max() else { return bad("no harmonic orders".into()) };
+    let nr = f64::from(base.motor.pole_pairs);
+    let cpr = f64::from(base.encoder.counts_per_rev);
+    let j = base.motor.inertia_kg_m2;
+    let from_profile = !base.motor.detent.is_empty();
+    let detent = if from_profile { base.motor.detent.clone() } else { assumed_detent(base) };
+    let s: f64 = detent.iter().map(|h| f64::from(h.order) * nr * h.amplitude_nm).sum();
+    let wb_stiff = (o.stiffness_margin * s / j).sqrt();
+    let wb = wb_stiff.max(TAU * o.min_servo_bandwidth_hz);
+    let fb = wb / TAU;
+    let mut notes = Vec::new();
+    let servo_reason = format!(
+        "stiffness J·ω_b² = {:.2} N·m/rad ≥ {:.1} × the detent's largest negative stiffness Σk·Nr·A_k = {:.2} N·m/rad ({}), so the rotor cannot snap between detent wells; velocity filter at the bandwidth (less encoder noise in the torque than a higher corner, more phase margin than a lower one)",
+        j * wb * wb,
+        (j * wb * wb / s.max(f64::MIN_POSITIVE)).min(1e6),
+        s,
+        if from_profile { "detent of the profile" } else { "no detent in the profile: typical values assumed" },
+    );
+    if fb > base.drive.current_loop_bandwidth_hz / 5.0 {
+        notes.push(format!(
+            "the servo bandwidth {fb:.0} Hz is more than a fifth of the current loop's {:.0} Hz: the loop may ring; a stiffer load coupling or a smaller stiffness margin helps",
+            base.drive.current_loop_bandwidth_hz
+        ));
+    }
+    let w_lo = wb * TAU / cpr;
+    let w_hi = 2.0 * w_lo;
+    let f_k = |w: f64| f64::from(kmax) * nr * w / TAU;
+    if f_k(w_hi) > fb {
+        notes.push(format!(
+            "harmonic {kmax} runs at {:.0} Hz at the fast speed, above the servo bandwidth {fb:.0} Hz: the loop does not follow it and the fit relies on J·dω/dt (J = {j:.3e} kg·m² must be right); a finer encoder allows slower runs",
+            f_k(w_hi)
+        ));
+    }
+    let dwell = 0.05;
+    let ramp = 0.1;
+    let steady = |w: f64| (o.electrical_periods * TAU / (nr * w)).max(o.min_steady_s);
+    let mut runs = Vec::new();
+    let mut i = 0;
+    for (w, why) in [
+        (
+            w_lo,
+            format!(
+                "slow: the encoder counts {:.0} times/s = the servo bandwidth in rad/s, so quantisation jitter cannot stall the rotor within a count; harmonic {kmax} at {:.1} Hz ({:.2} × bandwidth)",
+                cpr * w_lo / TAU,
+                f_k(w_lo),
+                f_k(w_lo) / fb
+            ),
+        ),
+        (
+            w_hi,
+            format!(
+                "fast: twice the slow speed, so D separates from Fs; harmonic {kmax} at {:.1} Hz ({:.2} × bandwidth)",
+                f_k(w_hi),
+                f_k(w_hi) / fb
+            ),
+        ),
+    ] {
+        for (dir, sign) in [("fwd", 1.0), ("rev", -1.0)] {
+            i += 1;
+            let st = steady(w);
+            runs.push(PlannedRun {
+                name: format!("run-{i}-{dir}-{w:.3}rad_s"),
+                speed_rad_s: sign * w,
+                dwell_s: dwell,
+                ramp_s: ramp,
+                duration_s: dwell + ramp + 0.05 + st,
+                reason: format!(
+                    "{why}; {} ({:.0} electrical periods in {st:.2} s steady)",
+                    if sign > 0.0 {
+                        "forward"
+                    } else {
+                        "reverse: with the forward run separates Fs·sgn(ω) from a constant torque"
+                    },
+                    st * nr * w / TAU
+                ),
+            });
+        }
+    }
+    let mut profile = base.clone();
+    profile.servo.bandwidth_hz = fb;
+    profile.servo.velocity_filter_hz = fb;
+    Ok(Plan {
+        profile,
+        servo_bandwidth_hz: fb,
+        velocity_filter_hz: fb,
+        detent_stiffness_nm_per_rad: s,
+        detent_from_profile: from_profile,
+        servo_reason,
+        runs,
+        notes,
+    })
+}
+
+/// Seed of run `index` from the base seed (SplitMix64): deterministic, independent of the
+/// number of threads.
+pub fn run_seed(base: u64, index: u64) -> u64 {
+    let mut z = base.wrapping_add(index.wrapping_add(1).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Simulates one planned run of `motor` (the simulated plant) with a servo controller
+/// configured from `controller` and compensation `comp`; returns the run log rows.
+pub fn simulate_run(
+    motor: &Profile,
+    controller: &Profile,
+    comp: Compensation,
+    r: &PlannedRun,
+    current_noise_a: f64,
+    seed: u64,
+) -> Result<Vec<LogRow>, SimError> {
+    let opts = SimOptions { current_noise_a, seed, ..SimOptions::default() };
+    let mut lp = ClosedLoop::new(motor, controller, Mode::Servo, comp, &opts)?;
+    let mut spec = RunSpec::at(r.speed_rad_s);
+    spec.dwell_s = r.dwell_s;
+    spec.ramp_s = r.ramp_s;
+    spec.duration_s = r.duration_s;
+    spec.window_s = (r.duration_s - r.dwell_s - r.ramp_s).max(0.0);
+    let pwm = motor.drive.pwm_hz;
+    let nr = motor.motor.pole_pairs;
+    let mut rows = Vec::with_capacity((r.duration_s * pwm) as usize + 1);
+    run(&mut lp, &spec, pwm, |k, rec| rows.push(LogRow::from_record(k, pwm, nr, rec)));
+    Ok(rows)
+}
+
+/// Simulates every run of `plan` on `motor` (in parallel; seeds from `seed`), with the
+/// controller of `controller` (the plan's profile for identification runs) and `comp`.
+/// Returns the logs in plan order. `tick` is called once per finished run.
+pub fn simulate_plan(
+    motor: &Profile,
+    controller: &Profile,
+    comp: Compensation,
+    plan: &Plan,
+    current_noise_a: f64,
+    seed: u64,
+    tick: &(dyn Fn() + Sync),
+) -> Result<Vec<RunLog>, SimError> {
+    // Fail early (outside the parallel part) on a bad set-up.
+    ClosedLoop::new(motor, controller, Mode::Servo, comp, &SimOptions { current_noise_a, ..SimOptions::default() })?;
+    plan.runs
+        .par_iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let rows = simulate_run(motor, controller, comp, r, current_noise_a, run_seed(seed, i as u64))?;
+            tick();
+            Ok(RunLog::from_rows(&rows, &r.name))
+        })
+        .collect()
+}
+
+/// What [`run_plan`] did.
+#[derive(Clone, Debug)]
+pub struct PlanRun {
+    /// The plan.
+    pub plan: Plan,
+    /// The log files written, in plan order.
+    pub files: Vec<PathBuf>,
+}
+
+/// Plans the identification of `motor`, simulates the runs (servo mode, compensation off,
+/// the options' current noise, the profile's encoder) in parallel with deterministic seeds,
+/// and writes one run-log CSV per run into `out_dir` (`<run name>.csv`, design.md §6
+/// columns). Each file is written to a temporary name and renamed when complete.
+pub fn run_plan(
+    motor: &Profile,
+    out_dir: &Path,
+    o: &PlanOptions,
+    tick: &(dyn Fn() + Sync),
+) -> Result<PlanRun, PlanError> {
+    let plan = plan(motor, o)?;
+    std::fs::create_dir_all(out_dir).map_err(|source| PlanError::Write { path: out_dir.to_path_buf(), source })?;
+    let _ = ClosedLoop::new(
+        motor,
+        &plan.profile,
+        Mode::Servo,
+        Compensation::Off,
+        &SimOptions { current_noise_a: o.current_noise_a, ..SimOptions::default() },
+    )?;
+    let files = plan
+        .runs
+        .par_iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let rows = simulate_run(
+                motor,
+                &plan.profile,
+                Compensation::Off,
+                r,
+                o.current_noise_a,
+                run_seed(o.seed, i as u64),
+            )?;
+            let path = out_dir.join(format!("{}.csv", r.name));
+            write_rows_atomic(&path, &rows)?;
+            tick();
+            Ok(path)
+        })
+        .collect::<Result<Vec<_>, PlanError>>()?;
+    Ok(PlanRun { plan, files })
+}
+
+/// Writes log rows to `path` through a temporary file in the same directory.
+pub fn write_rows_atomic(path: &Path, rows: &[LogRow]) -> Result<(), PlanError> {
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let tmp = path.with_file_name(format!(".tmp-{}-{name}", std::process::id()));
+    let write = || -> std::io::Result<()> {
+        let f = std::fs::File::create(&tmp)?;
+        let mut w = std::io::BufWriter::with_capacity(1 << 20, f);
+        write_csv(&mut w, rows).map_err(std::io::Error::other)?;
+        std::io::Write::flush(&mut w)?;
+        drop(w);
+        std::fs::rename(&tmp, path)
+    };
+    write().map_err(|source| {
+        let _ = std::fs::remove_file(&tmp);
+        PlanError::Write { path: path.to_path_buf(), source }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn patent_motor_plan_runs_both_directions_at_two_speeds_with_reasons() {
+        let p = Profile::preset("patent-motor").unwrap();
+        let plan = plan(&p, &PlanOptions::default()).unwrap();
+        assert_eq!(plan.runs.len(), 4);
+        let speeds: Vec<f64> = plan.runs.iter().map(|r| r.speed_rad_s).collect();
+        assert!(speeds[0] > 0.0 && speeds[1] < 0.0 && (speeds[2] / speeds[0] - 2.0).abs() < 1e-12);
+        // Stiffness margin: J ω_b² ≥ 2 S.
+        let wb = TAU * plan.servo_bandwidth_hz;
+        assert!(p.motor.inertia_kg_m2 * wb * wb >= 2.0 * plan.detent_stiffness_nm_per_rad * 0.999);
+        // Count rate of the slow run = ω_b.
+        let rate = speeds[0] * 4000.0 / TAU;
+        assert!((rate - wb).abs() < 1e-6 * wb);
+        assert!(plan.runs.iter().all(|r| !r.reason.is_empty() && r.duration_s > 2.0));
+        let text = plan.describe();
+        assert!(text.contains("why") && text.contains("run-4-rev"), "{text}");
+    }
+
+    #[test]
+    fn a_profile_without_detent_plans_with_typical_values() {
+        let mut p = Profile::preset("nema17-17hs4401").unwrap();
+        p.motor.detent.clear();
+        let plan = plan(&p, &PlanOptions::default()).unwrap();
+        assert!(!plan.detent_from_profile && plan.detent_stiffness_nm_per_rad > 0.0);
+        assert!(plan.servo_reason.contains("typical"));
+    }
+
+    #[test]
+    fn seeds_differ_per_run_and_repeat() {
+        assert_ne!(run_seed(1, 0), run_seed(1, 1));
+        assert_eq!(run_seed(7, 3), run_seed(7, 3));
+    }
+}
