@@ -18,6 +18,17 @@ $bin --quiet sweep --motor patent-motor --mode open-loop --compensation off,pate
 cp "$tmp/load/sweep.png" docs/sweep-estimated-load.png
 $bin --quiet sweep --motor docs/profiles/patent-motor-low-damping.toml --mode open-loop --compensation off,patent,estimated --out "$tmp/lowdamp" > docs/sweep-estimated-low-damping.txt
 cp "$tmp/lowdamp/sweep.png" docs/sweep-estimated-low-damping.png
+# Issue 4: identification from the planned servo runs (simulated, with current noise), then an
+# open-loop sweep whose controller uses the identified profile instead of the true one.
+$bin --quiet identify run --motor patent-motor --out "$tmp/idrun" > /dev/null
+bw=$(sed -n 's/^servo: position-loop bandwidth \([0-9.]*\) Hz.*/\1/p' "$tmp/idrun/plan.txt")
+logs=()
+for f in "$tmp"/idrun/run-*.csv; do logs+=(--log "$f"); done
+$bin --quiet identify "${logs[@]}" --motor patent-motor --servo-bandwidth "$bw" \
+    --out docs/profiles/patent-motor-identified.toml --report "$tmp/idrep" | grep -v ' s, fitted in ' > docs/identify-patent-motor.txt
+cp "$tmp/idrep/spectrum.png" docs/identify-spectrum-patent-motor.png
+cp "$tmp/idrep/residual.png" docs/identify-residual-patent-motor.png
+$bin --quiet sweep --motor patent-motor --controller-motor docs/profiles/patent-motor-identified.toml --mode open-loop --compensation off,patent --out "$tmp/idsweep" > docs/sweep-identified.txt
 # Summaries name the temporary directory; keep them free of it.
 sed -i "s|$tmp/[a-z]*/|out/|" docs/*.txt
 echo "figures written to docs/"

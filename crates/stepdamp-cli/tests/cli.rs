@@ -143,3 +143,14 @@ fn argument_errors_are_one_line_too() {
     assert_clean_error(&stepdamp(&["sweep", "--no-such-flag"]), "--no-such-flag");
     assert_clean_error(&stepdamp(&["simulate"]), "--speed");
 }
+
+#[test]
+fn every_profile_the_readme_uses_passes_motor_check() {
+    let docs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/profiles");
+    let names = files_in(&docs);
+    assert!(names.iter().any(|n| n == "patent-motor-identified.toml"), "{names:?}");
+    for n in names.iter().filter(|n| n.ends_with(".toml")) {
+        let o = stepdamp(&["motor", "check", docs.join(n).to_str().unwrap()]);
+        assert!(o.status.success(), "{n}: {}", stderr(&o));
+    }
+}
