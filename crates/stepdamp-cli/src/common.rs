@@ -95,11 +95,16 @@ impl AtomicFiles {
         tmp
     }
 
-    /// Moves every staged file into place.
+    /// Moves every staged file into place. If a move fails, the temporary files not yet
+    /// moved are removed (by `Drop`), so no `.tmp-*` file is left behind.
     pub fn commit(mut self) -> Result<Vec<PathBuf>> {
         let mut done = Vec::new();
-        for (tmp, fin) in std::mem::take(&mut self.staged) {
-            std::fs::rename(&tmp, &fin).with_context(|| format!("{}: cannot write", fin.display()))?;
+        while !self.staged.is_empty() {
+            let (tmp, fin) = self.staged.remove(0);
+            if let Err(e) = std::fs::rename(&tmp, &fin) {
+                let _ = std::fs::remove_file(&tmp);
+                return Err(anyhow::Error::new(e).context(format!("{}: cannot write", fin.display())));
+            }
             done.push(fin);
         }
         Ok(done)
@@ -153,5 +158,27 @@ mod tests {
             // Dropped without commit.
         }
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    }
+
+    #[test]
+    fn a_failed_move_leaves_no_temporary_file_behind() {
+        let dir = tempfile::tempdir().unwrap();
+        // The second target is an existing non-empty directory: renaming a file onto it fails.
+        let blocker = dir.path().join("b.csv");
+        std::fs::create_dir(&blocker).unwrap();
+        std::fs::write(blocker.join("keep"), b"").unwrap();
+        let mut f = AtomicFiles::in_dir(dir.path()).unwrap();
+        for name in ["a.csv", "b.csv", "c.csv"] {
+            let tmp = f.stage(&dir.path().join(name));
+            std::fs::write(&tmp, b"x").unwrap();
+        }
+        let e = f.commit().unwrap_err().to_string();
+        assert!(e.contains("b.csv") && e.contains("cannot write"), "{e}");
+        let mut left: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        assert_eq!(left, vec!["a.csv".to_string(), "b.csv".to_string()]);
     }
 }

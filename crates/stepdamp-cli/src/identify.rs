@@ -21,7 +21,7 @@ use stepdamp_identify::fit::{Effort, Fit, FitOptions, fit};
 use stepdamp_identify::log::{LogOptions, RunLog, read_log};
 use stepdamp_identify::model::Model;
 use stepdamp_identify::plan::{Plan, PlanOptions, plan, run_plan};
-use stepdamp_identify::refine::{RefineOptions, Refinement, refine, remaining_ripple_nm};
+use stepdamp_identify::refine::{PERIODIC_ORDERS, RefineOptions, Refinement, refine, remaining_ripple_nm, series_nm};
 use stepdamp_identify::spectrum::order_spectrum;
 use stepdamp_identify::static_curve::{TorqueSign, analyse, read_table};
 use stepdamp_sim::Profile;
@@ -169,7 +169,10 @@ pub fn run(args: IdentifyArgs, global: &Global) -> Result<()> {
 /// Parses a comma list of harmonic orders (1..=32, distinct).
 fn parse_orders(s: &str) -> Result<Vec<u16>> {
     let mut out: Vec<u16> = Vec::new();
-    for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+    for part in s.split(',').map(str::trim) {
+        if part.is_empty() {
+            bail!("--orders '{s}': an empty entry; give a comma list such as 1,2,4");
+        }
         let k: u16 = part.parse().map_err(|_| anyhow!("--orders '{part}': not a whole number"))?;
         if k == 0 || usize::from(k) > stepdamp_core::MAX_HARMONIC_ORDER {
             bail!("--orders {k}: each order must be in 1..={}", stepdamp_core::MAX_HARMONIC_ORDER);
@@ -284,6 +287,18 @@ fn check_output_dir(out: &Path) -> Result<()> {
     if !dir.is_dir() {
         bail!("--out {}: directory {} does not exist", out.display(), dir.display());
     }
+    if out.is_dir() {
+        bail!(
+            "--out {}: is a directory; give the profile's file name, e.g. {}",
+            out.display(),
+            out.join("identified.toml").display()
+        );
+    }
+    // Fail now, before any work or any report file, if the profile could not be written.
+    let probe = dir.join(format!(".stepdamp-write-test-{}", std::process::id()));
+    std::fs::write(&probe, b"")
+        .map_err(|e| anyhow!("--out {}: directory {} is not writable: {e}", out.display(), dir.display()))?;
+    let _ = std::fs::remove_file(&probe);
     Ok(())
 }
 
@@ -340,6 +355,10 @@ fn fit_table(f: &Fit, base: &str) -> String {
     s
 }
 
+/// Most control periods `identify run` simulates over all runs (200 s at 20 kHz, a few
+/// hundred MB of logs).
+const MAX_SIMULATED_ROWS: f64 = 4e6;
+
 fn run_run_cmd(a: RunArgs, global: &Global) -> Result<()> {
     let motor = load_motor(&a.motor)?;
     let orders = parse_orders(&a.orders)?;
@@ -356,6 +375,17 @@ fn run_run_cmd(a: RunArgs, global: &Global) -> Result<()> {
     // Creates the directory and checks it is writable.
     AtomicFiles::in_dir(&a.out)?;
     let p = plan(&motor, &po)?;
+    // The logs are held in memory (and written as CSV): bound their size.
+    let rows = p.total_s() * p.profile.drive.pwm_hz;
+    if rows > MAX_SIMULATED_ROWS {
+        bail!(
+            "--periods {}: the plan would log {:.0} s = {:.2e} rows at {} Hz; at most {MAX_SIMULATED_ROWS:.0e} rows are simulated (use fewer periods)",
+            a.periods,
+            p.total_s(),
+            rows,
+            p.profile.drive.pwm_hz
+        );
+    }
     print!("{}", p.describe());
     let pb = progress(p.runs.len() as u64, global.quiet, "simulating");
     let t0 = Instant::now();
@@ -388,7 +418,7 @@ fn run_run_cmd(a: RunArgs, global: &Global) -> Result<()> {
         seed: a.seed,
         ..RefineOptions::default()
     };
-    let pb = progress((p.runs.len() * a.iterations) as u64, global.quiet, "refining");
+    let pb = progress((p.runs.len() * (a.iterations + 1)) as u64, global.quiet, "refining");
     let r = refine(&motor, &p, &start, Some(&f0), &fo, &ro, &|| pb.inc(1))?;
     pb.finish_and_clear();
     print!("{}", refine_table(&r));
@@ -419,23 +449,34 @@ fn refine_table(r: &Refinement) -> String {
             .collect();
         let _ = writeln!(
             s,
-            "  step {}: effort ripple {:8.4} mN·m RMS{}; {}; Fs {:.3} mN·m",
+            "  step {}: ripple {:8.4} mN·m RMS on the fitted orders, {:8.4} on orders 1–{PERIODIC_ORDERS} ({}); {}; Fs {:.3} mN·m",
             st.iteration,
             1e3 * st.ripple_rms_nm,
-            if st.iteration == 0 { " (feed-forward off)" } else { "" },
+            1e3 * st.periodic_rms_nm,
+            if st.iteration == 0 {
+                "feed-forward off".to_string()
+            } else {
+                format!("step {}'s estimate on", st.iteration - 1)
+            },
             terms.join(", "),
             1e3 * st.model.coulomb_friction_nm
         );
     }
+    let _ = writeln!(
+        s,
+        "  check, the refined estimate on: ripple {:8.4} mN·m RMS on the fitted orders, {:8.4} on orders 1–{PERIODIC_ORDERS}",
+        1e3 * r.check.ripple_rms_nm,
+        1e3 * r.check.periodic_rms_nm
+    );
     let (b, a) = r.ripple_before_after_nm();
     let _ = writeln!(
         s,
-        "  ripple of the loop effort: {:.4} → {:.4} mN·m RMS ({:.0}× less)",
+        "  periodic ripple of the loop effort (orders 1–{PERIODIC_ORDERS}): {:.4} → {:.4} mN·m RMS ({:.0}× less)",
         1e3 * b,
         1e3 * a,
         b / a.max(1e-15)
     );
-    for w in &r.last_fit.warnings {
+    for w in &r.check.fit.warnings {
         let _ = writeln!(s, "  warning (feed-forward-on fit): {w}");
     }
     s
@@ -458,10 +499,14 @@ fn run_static_cmd(a: StaticArgs) -> Result<()> {
     let c = analyse(&pts, base.motor.pole_pairs, sign, kmax, &src).map_err(|e| anyhow!("{e}"))?;
     let picked = c.select(&orders);
     if picked.len() < orders.len() {
+        let missing: Vec<String> =
+            orders.iter().filter(|&&k| picked.iter().all(|h| h.order != k)).map(u16::to_string).collect();
         bail!(
-            "{src}: {} points over {} electrical periods cannot resolve order {kmax}",
+            "{src}: {} points over {} electrical periods cannot resolve order {} (order k needs more than 2·k points \
+             per electrical period)",
             pts.len(),
-            c.electrical_periods
+            c.electrical_periods,
+            missing.join(", ")
         );
     }
     println!("{src}: {} points, {} electrical periods", pts.len(), c.electrical_periods);
@@ -502,11 +547,16 @@ fn write_report(dir: &Path, f: &Fit, refined: Option<(&Refinement, &Plan)>, titl
     let before = order_spectrum(&s.theta_e_rad, &s.ripple_nm, MAX_PLOT_ORDER, 256);
     let (after, after_label) = match refined {
         Some((r, _)) => {
-            let lf = &r.last_fit;
-            // Effort beyond the feed-forward the last step ran with.
-            let ff = &r.steps[r.steps.len().saturating_sub(2)].model;
-            let beyond: Vec<f64> =
-                lf.samples.theta_e_rad.iter().zip(&lf.samples.ripple_nm).map(|(&th, &y)| y - series(ff, th)).collect();
+            let lf = &r.check.fit;
+            // Effort beyond the refined feed-forward (the check run).
+            let ff = &r.model;
+            let beyond: Vec<f64> = lf
+                .samples
+                .theta_e_rad
+                .iter()
+                .zip(&lf.samples.ripple_nm)
+                .map(|(&th, &y)| y - series_nm(ff, th))
+                .collect();
             (order_spectrum(&lf.samples.theta_e_rad, &beyond, MAX_PLOT_ORDER, 256), "feed-forward on: effort beyond it")
         }
         None => (order_spectrum(&s.theta_e_rad, &s.residual_nm, MAX_PLOT_ORDER, 256), "residual of the fit"),
@@ -541,11 +591,6 @@ fn write_report(dir: &Path, f: &Fit, refined: Option<(&Refinement, &Plan)>, titl
         root.present().map_err(|e| anyhow!("{}: {e}", res_png.display()))?;
     }
     files.commit()
-}
-
-/// `Σ A_k sin(k θe + φ_k)` of a model.
-fn series(m: &Model, theta_e: f64) -> f64 {
-    m.detent.iter().map(|h| h.amplitude_nm * (f64::from(h.order) * theta_e + h.phase_rad).sin()).sum()
 }
 
 fn draw_spectrum<DB: DrawingBackend>(
@@ -657,7 +702,7 @@ where
         chart.draw_series(vals.iter().map(|&p| Circle::new(p, 1, c.mix(0.35).filled()))).map_err(err)?;
         if pi == 0 {
             let line: Vec<(f64, f64)> =
-                (0..=400).map(|i| tau * i as f64 / 400.0).map(|t| (t, 1e3 * series(model, t))).collect();
+                (0..=400).map(|i| tau * i as f64 / 400.0).map(|t| (t, 1e3 * series_nm(model, t))).collect();
             chart.draw_series(LineSeries::new(line, BLACK.stroke_width(2))).map_err(err)?;
         }
     }
@@ -688,6 +733,7 @@ mod tests {
         assert!(parse_orders("0").unwrap_err().to_string().contains("1..=32"));
         assert!(parse_orders("4,4").unwrap_err().to_string().contains("twice"));
         assert!(parse_orders("x").unwrap_err().to_string().contains("'x'"));
+        assert!(parse_orders("1,,2").unwrap_err().to_string().contains("empty entry"));
     }
 
     #[test]
@@ -734,6 +780,20 @@ mod tests {
     }
 
     #[test]
+    fn a_directory_given_as_out_is_refused_before_any_report_is_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let log = dir.path().join("any.csv");
+        std::fs::write(&log, "t_s,theta_fb_rad,i_q_a\n0.0,0.0,0.1\n").unwrap();
+        let report = dir.path().join("rep");
+        let (l, o, r) = (log.to_str().unwrap(), dir.path().to_str().unwrap(), report.to_str().unwrap());
+        let e =
+            run(args(&["--log", l, "--motor", "patent-motor", "--out", o, "--report", r]), &Q).unwrap_err().to_string();
+        assert!(e.contains("is a directory") && e.contains("identified.toml"), "{e}");
+        assert!(!report.exists());
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1, "only the log is there");
+    }
+
+    #[test]
     fn missing_arguments_are_one_line_errors() {
         let e = run(args(&["--motor", "patent-motor", "--out", "x.toml"]), &Q).unwrap_err().to_string();
         assert!(e.contains("--log") && !e.contains('\n'), "{e}");
@@ -777,5 +837,24 @@ mod tests {
         assert!(
             (p.motor.detent[0].amplitude_nm - 0.02).abs() < 1e-9 && (p.motor.detent[0].phase_rad - 0.2).abs() < 1e-9
         );
+    }
+
+    #[test]
+    fn a_static_table_too_sparse_for_an_order_names_it_and_writes_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let table = dir.path().join("sparse.csv");
+        // 4 points per electrical period over 2 periods: order 1 resolves, 2 and 4 do not.
+        let mut s = String::from("theta_rad,torque_nm\n");
+        for i in 0..8 {
+            let th = i as f64 / 8.0 * 2.0 * std::f64::consts::TAU / 50.0;
+            let _ = writeln!(s, "{th},{}", 0.02 * (200.0 * th).sin());
+        }
+        std::fs::write(&table, s).unwrap();
+        let out = dir.path().join("s.toml");
+        let (t, o) = (table.to_str().unwrap(), out.to_str().unwrap());
+        let a = ["static", "--table", t, "--sign", "holding", "--motor", "patent-motor", "--out", o];
+        let e = run(args(&a), &Q).unwrap_err().to_string();
+        assert!(e.contains("sparse.csv") && e.contains("cannot resolve order 2, 4"), "{e}");
+        assert!(!out.exists());
     }
 }

@@ -137,7 +137,7 @@ pub enum LogError {
         /// The text found.
         value: String,
     },
-    /// A row has fewer fields than the header.
+    /// A row has more or fewer fields than the header.
     #[error("{path}: line {line}: {found} fields, the header has {expected}")]
     ShortRow {
         /// The file.
@@ -175,7 +175,8 @@ pub enum LogError {
     },
     /// The log covers too few electrical periods.
     #[error(
-        "{path}: too short: the rotor moved {periods:.2} electrical periods over {rows} rows (lines 2–{last_line}); at least {needed} are needed (run longer or faster)"
+        "{path}: too short: the rotor moved {periods:.2} electrical periods over {rows} rows (lines 2–{last_line}); at least {needed} are needed ({})",
+        if *periods < 0.01 { "it stands still: log a servo run at a constant speed" } else { "run longer or faster" }
     )]
     TooShort {
         /// The file.
@@ -294,7 +295,7 @@ pub fn parse_log<R: Read>(reader: R, source: &str, opts: &LogOptions) -> Result<
         if rec.len() == 1 && rec.get(0).is_some_and(<[u8]>::is_empty) {
             continue; // blank line
         }
-        if rec.len() < ncol {
+        if rec.len() != ncol {
             return Err(LogError::ShortRow { path, line, found: rec.len(), expected: ncol });
         }
         for (i, c) in cols.iter().enumerate() {
@@ -471,6 +472,19 @@ mod tests {
         let text = format!("{HEAD}{}0.5,0.5\n", body(3));
         let e = parse(&text).unwrap_err().to_string();
         assert!(e.contains("run.csv") && e.contains("line 5") && e.contains("2 fields"), "{e}");
+        let text = format!("{HEAD}{}0.5,0.5,0.1,7\n", body(3));
+        let e = parse(&text).unwrap_err().to_string();
+        assert!(e.contains("run.csv") && e.contains("line 5") && e.contains("4 fields, the header has 3"), "{e}");
+    }
+
+    #[test]
+    fn a_log_of_a_rotor_at_standstill_says_so() {
+        let mut text = String::from(HEAD);
+        for i in 0..6000 {
+            text += &format!("{},0.1,0.2\n", i as f64 * 5e-5);
+        }
+        let e = parse(&text).unwrap_err().to_string();
+        assert!(e.contains("run.csv") && e.contains("0.00 electrical periods") && e.contains("stands still"), "{e}");
     }
 
     #[test]

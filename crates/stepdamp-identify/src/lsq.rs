@@ -82,6 +82,10 @@ pub enum LsqError {
     /// A column is all zeros or the columns are linearly dependent.
     #[error("the regressors are linearly dependent (condition number {0:.3e})")]
     Singular(f64),
+    /// An observation, a coefficient, the residual or the covariance is not finite
+    /// (values too large to square in f64, or NaN in the data).
+    #[error("{0} is not finite (values in the data out of range, e.g. a current of 1e200 A?)")]
+    NonFinite(&'static str),
 }
 
 /// Solves the least-squares problem.
@@ -89,6 +93,9 @@ pub fn solve(d: &Design) -> Result<Solution, LsqError> {
     let (n, p) = (d.rows(), d.p);
     if n <= p {
         return Err(LsqError::TooFewRows { rows: n, cols: p });
+    }
+    if d.y.iter().any(|v| !v.is_finite()) {
+        return Err(LsqError::NonFinite("an observation"));
     }
     // Column scales: RMS of each column.
     let mut scale = vec![0.0; p];
@@ -135,6 +142,9 @@ pub fn solve(d: &Design) -> Result<Solution, LsqError> {
         rss += e * e;
         residual.push(e);
     }
+    if !rss.is_finite() || beta.iter().any(|b| !b.is_finite()) {
+        return Err(LsqError::NonFinite(if rss.is_finite() { "a coefficient" } else { "the residual sum of squares" }));
+    }
     let sigma2 = rss / (n - p) as f64;
     // Sandwich in scaled units: scores per block.
     let mut meat = DMatrix::<f64>::zeros(p, p);
@@ -180,6 +190,9 @@ pub fn solve(d: &Design) -> Result<Solution, LsqError> {
             cov_s[(j, k)] /= scale[j] * scale[k];
         }
     }
+    if cov_s.iter().any(|c| !c.is_finite()) {
+        return Err(LsqError::NonFinite("the covariance"));
+    }
     let inflation = (0..p).map(|j| inv[(j, j)] * n as f64).collect();
     Ok(Solution { beta, cov: cov_s, residual_rms: (rss / n as f64).sqrt(), residual, condition, inflation })
 }
@@ -217,5 +230,17 @@ mod tests {
             d.push(&[i as f64, 2.0 * i as f64], 1.0, 0);
         }
         assert!(matches!(solve(&d), Err(LsqError::Singular(_))));
+    }
+
+    #[test]
+    fn observations_too_large_to_square_are_an_error_not_an_infinite_fit() {
+        let mut d = Design::new(2);
+        for i in 0..100 {
+            let x = i as f64 * 0.1;
+            d.push(&[1.0, x.sin()], 1e200 * (1.0 + x.cos()), 0);
+        }
+        assert_eq!(solve(&d).unwrap_err(), LsqError::NonFinite("the residual sum of squares"));
+        d.y[3] = f64::NAN;
+        assert_eq!(solve(&d).unwrap_err(), LsqError::NonFinite("an observation"));
     }
 }

@@ -19,7 +19,10 @@
 //!
 //! # Method
 //!
-//! Non-uniform tables are resampled on a uniform grid by periodic linear interpolation
+//! A table must end within half a mean step of a whole number of periods (read either
+//! way), have at least 3 points per electrical period, and span at most [`MAX_PERIODS`];
+//! order `k` is reported only when `k·P` is below half the number of points (Nyquist).
+//! Non-uniform tables are resampled on a uniform grid of as many points by periodic linear interpolation
 //! (the interpolation error of a harmonic sampled `m` times per its period is about
 //! `(π/m)²/6` of its amplitude: 0.2 % at 30 points per period). Then a real FFT
 //! (`realfft`): with the table spanning `P` electrical periods, bin `m = k·P` is harmonic
@@ -30,6 +33,9 @@ use crate::fit::wrap_pi;
 use realfft::RealFftPlanner;
 use std::f64::consts::{FRAC_PI_2, TAU};
 use std::path::Path;
+
+/// Most electrical periods a table may span (a million points at 100 per period).
+pub const MAX_PERIODS: f64 = 10_000.0;
 
 /// Which torque the table holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -66,7 +72,8 @@ pub struct StaticCurve {
 }
 
 impl StaticCurve {
-    /// The harmonics of the listed orders (orders the table cannot resolve are left out).
+    /// The harmonics of the listed orders. Orders the table cannot resolve (`k·P` at or
+    /// above half the number of points, with `P` periods) are left out.
     pub fn select(&self, orders: &[u16]) -> Vec<StaticHarmonic> {
         orders.iter().filter_map(|&k| self.harmonics.iter().find(|h| h.order == k).copied()).collect()
     }
@@ -226,22 +233,38 @@ pub fn analyse(
     let te = TAU / f64::from(pole_pairs);
     let (th0, thn) = (points[0].0, points[n - 1].0);
     let inclusive = (thn - th0) / te;
-    let exclusive = (thn - th0) * n as f64 / (n - 1) as f64 / te;
-    let off = |x: f64| if x.round() >= 1.0 { (x - x.round()).abs() / x.round() } else { f64::INFINITY };
-    // Whichever reading is closer to whole periods (a uniform table fits one of them exactly).
-    let (periods, pts) = if off(inclusive) <= off(exclusive) && off(inclusive) < 0.02 {
+    if inclusive > MAX_PERIODS {
+        return Err(span_err(format!(
+            "the table spans {inclusive:.4e} electrical periods (2π/{pole_pairs} rad each); at most {MAX_PERIODS} are \
+             analysed (is theta_rad the mechanical angle in radians?)"
+        )));
+    }
+    // One mean step, in periods. The table ends either at θ_first + P·2π/Nr (the last point
+    // repeats the first a span on) or one step before it; within half a step either way.
+    let step = inclusive / (n - 1) as f64;
+    let whole = |x: f64| x.round() >= 1.0 && (x - x.round()).abs() < 0.5 * step;
+    let (periods, pts) = if whole(inclusive) {
         (inclusive.round(), &points[..n - 1])
-    } else if off(exclusive) < 0.02 {
-        (exclusive.round(), points)
+    } else if whole(inclusive + step) {
+        ((inclusive + step).round(), points)
     } else {
         return Err(span_err(format!(
-            "the table spans {inclusive:.3} electrical periods (2π/{pole_pairs} rad each): it must span a whole number, ending at or one step before θ_first + P·2π/{pole_pairs}"
+            "the table spans {inclusive:.3} electrical periods (2π/{pole_pairs} rad each): it must span a whole number, \
+             ending at or one step before θ_first + P·2π/{pole_pairs} (within half a step)"
         )));
     };
     let p = periods as usize;
     let span = periods * te;
-    let needed = 2 * usize::from(max_order) * p + 2;
-    let m = (pts.len().max(needed).max(64) + 1) & !1;
+    // The grid has as many points as the table: a uniform table is analysed exactly, a
+    // non-uniform one is resampled without inventing resolution it does not have.
+    let m = pts.len();
+    if m < 2 * p + 1 {
+        return Err(span_err(format!(
+            "{m} points over {p} electrical periods ({:.2} per period): at least 3 per period are needed to resolve \
+             order 1 (is theta_rad the mechanical angle in radians?)",
+            m as f64 / periods
+        )));
+    }
     // Periodic linear interpolation on a uniform grid over [th0, th0 + span).
     let sgn = match sign {
         TorqueSign::OnRotor => -1.0,
@@ -363,6 +386,39 @@ mod tests {
         t.truncate(200);
         let e = analyse(&t, 50, TorqueSign::Holding, 4, "curve.csv").unwrap_err().to_string();
         assert!(e.contains("curve.csv") && e.contains("1.327") && e.contains("whole number"), "{e}");
+    }
+
+    #[test]
+    fn a_table_a_fraction_of_a_period_short_of_whole_is_rejected_even_over_many_periods() {
+        // 50.4 periods at 200 points per period: 0.4 periods is 80 steps, not a rounding error.
+        let t = table(10_080, 50.4, 1.0, false, false);
+        let e = analyse(&t, 50, TorqueSign::Holding, 4, "long.csv").unwrap_err().to_string();
+        assert!(e.contains("long.csv") && e.contains("50.395") && e.contains("whole number"), "{e}");
+        // The same length ending on a whole number of periods is accepted.
+        let c = analyse(&table(10_000, 50.0, 1.0, false, false), 50, TorqueSign::Holding, 4, "t").unwrap();
+        assert_eq!(c.electrical_periods, 50);
+        check(&c, 1e-12, 1e-10);
+    }
+
+    #[test]
+    fn orders_above_the_tables_nyquist_limit_are_not_reported() {
+        // 4 points per electrical period over 2 periods: bins k·P < 4 only, so order 1 alone.
+        let c = analyse(&table(8, 2.0, 1.0, false, false), 50, TorqueSign::Holding, 4, "t").unwrap();
+        let orders: Vec<u16> = c.harmonics.iter().map(|h| h.order).collect();
+        assert_eq!(orders, vec![1]);
+        assert!(c.select(&[1, 2, 4]).len() == 1);
+    }
+
+    #[test]
+    fn degrees_or_absurd_angles_are_rejected_without_allocating_a_grid_for_them() {
+        // A table in degrees: 360 "rad" over one mechanical turn is ≈ 2865 periods with 3.4 points per ten of them.
+        let deg: Vec<(f64, f64)> = (0..=100).map(|i| (3.6 * f64::from(i), 0.01)).collect();
+        let e = analyse(&deg, 50, TorqueSign::Holding, 4, "deg.csv").unwrap_err().to_string();
+        assert!(e.contains("deg.csv") && e.contains("radians"), "{e}");
+        // Angles up to 7e12 rad: far more periods than are ever analysed.
+        let huge: Vec<(f64, f64)> = (0..=10).map(|i| (7e11 * f64::from(i), 0.01)).collect();
+        let e = analyse(&huge, 50, TorqueSign::Holding, 4, "huge.csv").unwrap_err().to_string();
+        assert!(e.contains("huge.csv") && e.contains("at most"), "{e}");
     }
 
     proptest::proptest! {
