@@ -15,7 +15,8 @@
 //! torque on the rotor is `−Σ A_k sin(k·Nr·θ + φ_k)`, so the motor must supply `+Σ…`), and
 //! `c` a constant torque (a load, or a current-sensor offset seen as torque), fitted only
 //! when both directions of travel are logged. Every term is linear in the unknowns, so one
-//! least-squares solve ([`crate::lsq`]) gives all of them with their covariance.
+//! least-squares solve ([`crate::lsq`]) gives all of them with their covariance; which of
+//! `D` and `c` are fitted depends on the runs logged (see *Friction terms* below).
 //!
 //! # Choices
 //!
@@ -42,10 +43,28 @@
 //!   ramp and a final stop are dropped), minus samples where the rotor is (nearly) stopped,
 //!   `ω·sgn(ω̄) < ` [`FitOptions::min_speed_fraction`]`·|ω̄|`: there static friction holds
 //!   whatever torque is needed and the model does not apply.
-//! * **`D`** is fitted only when the logs hold at least two speeds (ratio ≥ 1.3); with one
-//!   speed `D·ω` is indistinguishable from `Fs`, so `D` is held at
-//!   [`FitOptions::viscous_fallback_nm_s_per_rad`] and a warning says so. The constant
-//!   torque `c` is fitted only with both directions; with one, `Fs` absorbs it.
+//!
+//! # Friction terms
+//!
+//! The friction columns `sgn(ω̄)`, `ω̄` and `1` are constant over each log, so they can only
+//! be told apart by the distinct *levels* (direction, `|ω̄|`) the logs cover; speeds less
+//! than [`SPEED_RATIO`] apart in one direction count as one level. `Fs` is always fitted
+//! (with one level it absorbs `c` and any error of the `D` held); the others only where the levels separate
+//! them, and a term that is not fitted is held, with a warning naming it and the run to add:
+//!
+//! | levels logged | fitted | held |
+//! |---|---|---|
+//! | one direction, one speed | `Fs` | `D` at the fallback, `c = 0` (absorbed by `Fs`) |
+//! | one direction, two speeds | `Fs`, `D` | `c = 0` (absorbed by `Fs`) |
+//! | both directions, one speed (the same, or one per direction) | `Fs`, `c` | `D` at the fallback |
+//! | both directions, two speeds in at least one of them | `Fs`, `D`, `c` | — |
+//!
+//! `D` needs two speeds *in the same direction*: forward at one speed and reverse at
+//! another give two levels for three unknowns. There `D` is held at
+//! [`FitOptions::viscous_fallback_nm_s_per_rad`] rather than `c` at 0: a constant torque
+//! (load, current offset) is common and would bias both `Fs` and `D`, while a wrong `D` at
+//! the slow speeds of identification moves `Fs` by only `ΔD·|ω̄|`. With these rules the
+//! friction columns are always linearly independent.
 //!
 //! # Error bounds
 //!
@@ -75,6 +94,14 @@ use stepdamp_sim::Profile;
 
 /// Default harmonic orders of the fit.
 pub const DEFAULT_ORDERS: [u16; 3] = [1, 2, 4];
+
+/// Two speeds in one direction separate `D` from `Fs` when the faster is at least this many
+/// times the slower (see the module documentation, *Friction terms*).
+pub const SPEED_RATIO: f64 = 1.3;
+
+/// Fewest samples of steady running a log must leave for the fit (after the speed filter's
+/// start-up at each end is dropped).
+const MIN_STEADY_SAMPLES: usize = 17;
 
 /// Which signal is the loop's effort.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -221,6 +248,38 @@ pub enum Warning {
         /// The `D` used instead, N·m·s/rad.
         viscous_used: f64,
     },
+    /// Both directions, but one speed in each (and different speeds): two levels for `Fs`,
+    /// `D` and `c`, so `D` is held and `Fs` and `c` are fitted.
+    OneSpeedPerDirection {
+        /// Mean `|ω̄|` of the forward logs, rad/s.
+        forward_rad_s: f64,
+        /// Mean `|ω̄|` of the reverse logs, rad/s.
+        reverse_rad_s: f64,
+        /// The `D` used instead, N·m·s/rad.
+        viscous_used: f64,
+        /// A run that would separate `D`: its direction (`forward` or `reverse`) and speed
+        /// in rad/s.
+        add_run: (&'static str, f64),
+    },
+    /// The fitted `Fs` is negative (clamped to 0 in the profile) or not significantly above
+    /// zero.
+    CoulombNotPositive {
+        /// Fitted `Fs`, N·m.
+        value_nm: f64,
+        /// Its 95 % half-width, N·m.
+        ci95_nm: f64,
+        /// The only direction logged, when `c` could not be fitted.
+        one_direction: Option<&'static str>,
+        /// The `D` held (not fitted), N·m·s/rad.
+        viscous_held: Option<f64>,
+    },
+    /// The fitted `D` is negative (clamped to 0 in the profile).
+    ViscousNegative {
+        /// Fitted `D`, N·m·s/rad.
+        value: f64,
+        /// Its 95 % half-width, N·m·s/rad.
+        ci95: f64,
+    },
     /// A harmonic is too fast for the servo to follow.
     TooFast {
         /// Log.
@@ -292,6 +351,38 @@ impl std::fmt::Display for Warning {
             Warning::SingleSpeed { speed_rad_s, viscous_used } => write!(
                 f,
                 "one speed only (|ω| ≈ {speed_rad_s:.3} rad/s): D cannot be separated from Fs; D held at {viscous_used:.3e} N·m·s/rad (log a second speed at least 1.3× apart)"
+            ),
+            Warning::OneSpeedPerDirection { forward_rad_s, reverse_rad_s, viscous_used, add_run: (dir, speed) } => {
+                write!(
+                    f,
+                    "forward at {forward_rad_s:.3} rad/s and reverse at {reverse_rad_s:.3} rad/s only: with one speed per direction D·ω cannot be separated from Fs·sgn(ω) and the constant torque; D held at {viscous_used:.3e} N·m·s/rad, Fs and the constant torque fitted (log a second speed in one direction, e.g. {dir} at {speed:.3} rad/s)"
+                )
+            }
+            Warning::CoulombNotPositive { value_nm, ci95_nm, one_direction, viscous_held } => {
+                let (v, ci) = (1e3 * value_nm, 1e3 * ci95_nm);
+                if *value_nm < 0.0 {
+                    write!(
+                        f,
+                        "Fs fitted negative ({v:.3} ± {ci:.3} mN·m) and clamped to 0 in the profile: friction cannot drive the rotor"
+                    )?;
+                } else {
+                    write!(f, "Fs = {v:.3} ± {ci:.3} mN·m is not significantly above 0")?;
+                }
+                match one_direction {
+                    Some(dir) => write!(
+                        f,
+                        "; likely a constant torque (a load, or a current-sensor offset) counted as friction because only {dir} travel is logged (log the other direction too), or too little data"
+                    )?,
+                    None => write!(f, "; likely too little data or too much noise (log longer runs)")?,
+                }
+                match viscous_held {
+                    Some(d) => write!(f, ", or the D held ({d:.3e} N·m·s/rad) is too large"),
+                    None => Ok(()),
+                }
+            }
+            Warning::ViscousNegative { value, ci95 } => write!(
+                f,
+                "D fitted negative ({value:.3e} ± {ci95:.1e} N·m·s/rad) and clamped to 0 in the profile: likely too little data, or speeds too close together to separate D from Fs"
             ),
             Warning::TooFast { source, order, harmonic_hz, bandwidth_hz } => write!(
                 f,
@@ -379,17 +470,69 @@ pub enum FitError {
     /// Bad options.
     #[error("{0}")]
     Options(String),
-    /// A log without motion.
-    #[error("{log}: the rotor does not move (mean speed {speed:.3e} rad/s): identification needs constant-speed runs")]
+    /// A log too short for the fit (whether or not the rotor moves).
+    #[error(
+        "{log}: too short: {samples} samples ({duration_s:.3} s, mean speed {speed:.3e} rad/s); at least {needed} are needed (more than 16 at steady speed, after the speed filter's start-up at each end): log a longer constant-speed run"
+    )]
+    TooShort {
+        /// Log.
+        log: String,
+        /// Samples in the log.
+        samples: usize,
+        /// Its duration, s.
+        duration_s: f64,
+        /// Its mean speed, rad/s.
+        speed: f64,
+        /// Samples needed at this speed and sample rate.
+        needed: usize,
+    },
+    /// A log in which the rotor (almost) does not move: at most one electrical period.
+    #[error(
+        "{log}: the rotor does not move: {periods:.2} electrical periods over the log (mean speed {speed:.3e} rad/s; more than one needed, and many for a good fit): identification needs constant-speed runs"
+    )]
     NoMotion {
         /// Log.
         log: String,
-        /// Its mean speed.
+        /// Its mean speed, rad/s.
         speed: f64,
+        /// Electrical periods covered at that speed over the log.
+        periods: f64,
     },
-    /// Too few usable samples, or the terms cannot be separated at all.
+    /// A log long enough and moving, but not at a steady speed.
+    #[error(
+        "{log}: the speed is not steady: only {steady} samples lie between the first and the last sample running at ≥ 80 % of the mean speed {speed:.3e} rad/s (more than 16 needed): identification needs constant-speed runs"
+    )]
+    Unsteady {
+        /// Log.
+        log: String,
+        /// Its mean speed, rad/s.
+        speed: f64,
+        /// Samples in the steady window found.
+        steady: usize,
+    },
+    /// A value of the data or of the result is infinite or not a number: the data are out of
+    /// range (too large to square in `f64`) or not numbers.
+    #[error(
+        "{what} is not finite (logs: {logs}; {detail}): values in the data are out of range (e.g. a current of 1e200 A) or not numbers; check the units and the columns"
+    )]
+    NonFinite {
+        /// What is not finite.
+        what: String,
+        /// The logs fitted (their source names).
+        logs: String,
+        /// Where the data are largest (or not a number).
+        detail: String,
+    },
+    /// Too few usable samples, or the terms cannot be separated at all. The cause is part
+    /// of the message, not a `source`, so an error chain prints it once.
     #[error("least squares failed: {0}")]
-    Lsq(#[from] LsqError),
+    Lsq(LsqError),
+}
+
+impl From<LsqError> for FitError {
+    fn from(e: LsqError) -> Self {
+        FitError::Lsq(e)
+    }
 }
 
 /// Wraps an angle to `(−π, π]`.
@@ -452,27 +595,49 @@ struct Prepared<'a> {
 fn prepare<'a>(log: &'a RunLog, o: &FitOptions, kmax: u16) -> Result<Prepared<'a>, FitError> {
     let n = log.len();
     let nr = f64::from(o.pole_pairs);
-    let no_motion = |speed: f64| FitError::NoMotion { log: log.source.clone(), speed };
-    if n < 16 {
-        return Err(no_motion(0.0));
+    let (_, _, w_all) = kinematics::line_fit(&log.t_s, &log.theta_fb_rad);
+    let too_short = |needed: usize| FitError::TooShort {
+        log: log.source.clone(),
+        samples: n,
+        duration_s: log.duration_s(),
+        speed: w_all,
+        needed,
+    };
+    if n < MIN_STEADY_SAMPLES {
+        return Err(too_short(MIN_STEADY_SAMPLES));
+    }
+    let moved = w_all.abs() * log.duration_s() * nr;
+    if !moved.is_finite() {
+        return Err(FitError::NonFinite {
+            what: "the mean speed".into(),
+            logs: log.source.clone(),
+            detail: format!("duration {:.3e} s, mean speed {w_all:.3e} rad/s", log.duration_s()),
+        });
+    }
+    if moved <= TAU {
+        return Err(FitError::NoMotion { log: log.source.clone(), speed: w_all, periods: moved / TAU });
     }
     let ts = kinematics::median_step(&log.t_s);
-    let (_, _, w_all) = kinematics::line_fit(&log.t_s, &log.theta_fb_rad);
-    let moved = w_all.abs() * log.duration_s() * nr;
-    if moved.is_nan() || moved <= TAU {
-        return Err(no_motion(w_all));
-    }
     let fc = kinematics::corner_hz(w_all, o.counts_per_rev, kmax, o.pole_pairs, 1.0 / ts);
     let kin = kinematics::estimate(&log.t_s, &log.theta_fb_rad, fc);
     // Steady window: from the first to the last sample running at ≥ 80 % of the mean speed
     // in its direction (drops the start from rest, the ramp and a final stop).
     let running = |i: &usize| kin.omega_rad_s[*i] * w_all.signum() >= 0.8 * w_all.abs();
     let (e0, e1) = (kin.edge.min(n), n.saturating_sub(kin.edge));
+    if e1 < e0 + MIN_STEADY_SAMPLES {
+        return Err(too_short(2 * kin.edge + MIN_STEADY_SAMPLES));
+    }
     let lo = (e0..e1).find(running);
     let hi = (e0..e1).rev().find(running).map(|i| i + 1);
     let (lo, hi) = match (lo, hi) {
-        (Some(a), Some(b)) if b > a + 16 => (a, b),
-        _ => return Err(no_motion(w_all)),
+        (Some(a), Some(b)) if b >= a + MIN_STEADY_SAMPLES => (a, b),
+        (a, b) => {
+            let steady = match (a, b) {
+                (Some(a), Some(b)) => b.saturating_sub(a),
+                _ => 0,
+            };
+            return Err(FitError::Unsteady { log: log.source.clone(), speed: w_all, steady });
+        }
     };
     let (_, _, speed) = kinematics::line_fit(&log.t_s[lo..hi], &log.theta_fb_rad[lo..hi]);
     let periods = nr * (log.theta_fb_rad[hi - 1] - log.theta_fb_rad[lo]).abs() / TAU;
@@ -522,21 +687,22 @@ fn fit_prepared(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Result<
             rev_periods += p.periods;
         }
     }
-    let both = fwd_periods > 0.0 && rev_periods > 0.0;
-    if !both {
-        warnings.push(Warning::OneDirection { direction: if fwd_periods > 0.0 { "forward" } else { "reverse" } });
+    let one_direction = match (fwd_periods > 0.0, rev_periods > 0.0) {
+        (true, true) => None,
+        (true, false) => Some("forward"),
+        _ => Some("reverse"),
+    };
+    if let Some(direction) = one_direction {
+        warnings.push(Warning::OneDirection { direction });
     }
     for (dir, per) in [("forward", fwd_periods), ("reverse", rev_periods)] {
         if per > 0.0 && per < o.recommended_periods {
             warnings.push(Warning::FewPeriods { direction: dir, periods: per, recommended: o.recommended_periods });
         }
     }
-    let (smin, smax) =
-        prepared.iter().map(|p| p.speed.abs()).fold((f64::INFINITY, 0.0f64), |(a, b), s| (a.min(s), b.max(s)));
-    let fit_d = smax >= 1.3 * smin;
-    if !fit_d {
-        warnings.push(Warning::SingleSpeed { speed_rad_s: smax, viscous_used: o.viscous_fallback_nm_s_per_rad });
-    }
+    let terms = friction_terms(prepared, o.viscous_fallback_nm_s_per_rad);
+    let (fit_d, both) = (terms.fit_d, terms.fit_c);
+    warnings.extend(terms.warning);
 
     // Columns: a_k, b_k per order; Fs; [D]; [c].
     let nh = o.orders.len();
@@ -555,6 +721,9 @@ fn fit_prepared(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Result<
     let mut block_base = 0u32;
     let mut runs = Vec::new();
     let d_fixed = if fit_d { 0.0 } else { o.viscous_fallback_nm_s_per_rad };
+    let logs_named = || prepared.iter().map(|p| p.log.source.as_str()).collect::<Vec<_>>().join(", ");
+    let non_finite =
+        |what: String| FitError::NonFinite { what, logs: logs_named(), detail: largest_effort(prepared, o) };
     for prep in prepared {
         let (log, kin) = (prep.log, &prep.kin);
         let effort = match o.effort {
@@ -594,6 +763,9 @@ fn fit_prepared(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Result<
             }
             let j_alpha = o.inertia_kg_m2 * kin.alpha_rad_s2[i];
             let y = o.km_nm_per_a * effort[i] - j_alpha - d_ripple * (w - wbar) - d_fixed * wbar;
+            if !y.is_finite() {
+                return Err(non_finite(format!("{}: the torque Km·i − J·dω/dt at t = {} s", log.source, log.t_s[i])));
+            }
             let b = ((th - th0).abs() / per_block) as u32;
             max_block = max_block.max(b);
             design.push(&row, y, block_base + b);
@@ -644,7 +816,14 @@ fn fit_prepared(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Result<
             back_step_fraction: back,
         });
     }
-    let sol = lsq::solve(&design)?;
+    let sol = match lsq::solve(&design) {
+        Ok(sol) => sol,
+        Err(LsqError::NonFinite(what)) => return Err(non_finite(what.to_string())),
+        Err(e) => return Err(e.into()),
+    };
+    if let Some(what) = non_finite_in(&sol) {
+        return Err(non_finite(what.to_string()));
+    }
 
     // Quantisation correction of the harmonic regressors.
     let gain = |k: u16| match o.counts_per_rev {
@@ -668,6 +847,26 @@ fn fit_prepared(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Result<
     let coulomb = est(col_fs);
     let viscous = col_d.map(est);
     let offset = col_c.map(est);
+    let finite = |e: &Estimate| e.value.is_finite() && e.ci95.is_finite();
+    if !harmonics.iter().all(|h| finite(&h.amplitude_nm) && finite(&h.phase_rad)) {
+        return Err(non_finite("a harmonic amplitude or its interval".into()));
+    }
+    if !(finite(&coulomb) && viscous.iter().chain(&offset).all(finite)) {
+        return Err(non_finite("a friction term or its interval".into()));
+    }
+    if coulomb.value < coulomb.ci95 {
+        warnings.push(Warning::CoulombNotPositive {
+            value_nm: coulomb.value,
+            ci95_nm: coulomb.ci95,
+            one_direction,
+            viscous_held: (!fit_d).then_some(o.viscous_fallback_nm_s_per_rad),
+        });
+    }
+    if let Some(d) = viscous
+        && d.value < 0.0
+    {
+        warnings.push(Warning::ViscousNegative { value: d.value, ci95: d.ci95 });
+    }
     for (c, name) in [(Some(col_fs), "Fs"), (col_d, "D"), (col_c, "the constant torque")] {
         if let Some(c) = c
             && sol.inflation[c] > o.max_inflation
@@ -703,6 +902,10 @@ fn fit_prepared(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Result<
         }
         start += run.samples_used;
     }
+    let ripple_rms_nm = (fitted_ss / ripple.len().max(1) as f64).sqrt();
+    if !ripple_rms_nm.is_finite() {
+        return Err(non_finite("the fitted detent ripple".into()));
+    }
     Ok(Fit {
         harmonics,
         coulomb_friction_nm: coulomb,
@@ -710,13 +913,95 @@ fn fit_prepared(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Result<
         viscous_nm_s_per_rad: viscous,
         offset_nm: offset,
         residual_rms_nm: sol.residual_rms,
-        ripple_rms_nm: (fitted_ss / ripple.len().max(1) as f64).sqrt(),
+        ripple_rms_nm,
         samples_used: sol.residual.len(),
         condition: sol.condition,
         runs,
         warnings,
         samples: FitSamples { theta_e_rad: theta_e_used, ripple_nm: ripple, residual_nm: sol.residual },
     })
+}
+
+/// The friction and constant terms the logs' levels (direction, `|ω̄|`) can separate, and
+/// the warning for the term held (see the module documentation, *Friction terms*).
+struct FrictionTerms {
+    fit_d: bool,
+    fit_c: bool,
+    warning: Option<Warning>,
+}
+
+fn friction_terms(prepared: &[Prepared], viscous_fallback: f64) -> FrictionTerms {
+    // (min, max, mean) of |ω̄| over the logs of one direction.
+    let range = |forward: bool| {
+        let speeds: Vec<f64> = prepared.iter().filter(|p| (p.speed > 0.0) == forward).map(|p| p.speed.abs()).collect();
+        (!speeds.is_empty()).then(|| {
+            let (lo, hi) = speeds.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &s| (a.min(s), b.max(s)));
+            (lo, hi, speeds.iter().sum::<f64>() / speeds.len() as f64)
+        })
+    };
+    let two_speeds = |r: Option<(f64, f64, f64)>| r.is_some_and(|(lo, hi, _)| hi >= SPEED_RATIO * lo);
+    let (fwd, rev) = (range(true), range(false));
+    let fit_d = two_speeds(fwd) || two_speeds(rev);
+    let fit_c = fwd.is_some() && rev.is_some();
+    let warning = if fit_d {
+        None
+    } else {
+        match (fwd, rev) {
+            (Some((f0, f1, fm)), Some((r0, r1, rm))) if f1.max(r1) >= SPEED_RATIO * f0.min(r0) => {
+                // One speed per direction, different: the extreme pair spans the directions.
+                // Adding the faster speed in the slower direction separates D.
+                let add_run = if r1 / f0 >= f1 / r0 { ("forward", r1) } else { ("reverse", f1) };
+                Some(Warning::OneSpeedPerDirection {
+                    forward_rad_s: fm,
+                    reverse_rad_s: rm,
+                    viscous_used: viscous_fallback,
+                    add_run,
+                })
+            }
+            _ => {
+                let smax = fwd.iter().chain(&rev).map(|r| r.1).fold(0.0, f64::max);
+                Some(Warning::SingleSpeed { speed_rad_s: smax, viscous_used: viscous_fallback })
+            }
+        }
+    };
+    FrictionTerms { fit_d, fit_c, warning }
+}
+
+/// The first part of a least-squares solution that is not finite: a coefficient, the
+/// covariance (it gives every interval) or the residual.
+fn non_finite_in(sol: &lsq::Solution) -> Option<&'static str> {
+    if sol.beta.iter().any(|b| !b.is_finite()) {
+        Some("a coefficient")
+    } else if sol.cov.iter().any(|c| !c.is_finite()) {
+        Some("the covariance")
+    } else if !sol.residual_rms.is_finite() || sol.residual.iter().any(|e| !e.is_finite()) {
+        Some("the residual")
+    } else {
+        None
+    }
+}
+
+/// Where the effort of the logs is largest in magnitude (or not a number), for errors.
+fn largest_effort(prepared: &[Prepared], o: &FitOptions) -> String {
+    let mut largest: Option<(f64, &str)> = None;
+    for p in prepared {
+        let effort = match o.effort {
+            Effort::MeasuredIq => Some(&p.log.i_q_a),
+            Effort::CommandIq => p.log.iq_cmd_a.as_ref(),
+        };
+        for &v in effort.into_iter().flatten() {
+            if v.is_nan() {
+                return format!("a current that is not a number in {}", p.log.source);
+            }
+            if largest.is_none_or(|(m, _)| v.abs() > m) {
+                largest = Some((v.abs(), &p.log.source));
+            }
+        }
+    }
+    match largest {
+        Some((m, src)) => format!("largest |current| {m:.3e} A, in {src}"),
+        None => "no current samples".into(),
+    }
 }
 
 /// Amplitude and phase of `a sin x + b cos x = A sin(x + φ)` with 95 % half-widths by the
@@ -746,5 +1031,27 @@ mod tests {
         assert_eq!(wrap_pi(-PI), PI);
         assert!((wrap_pi(3.0 * PI / 2.0) + PI / 2.0).abs() < 1e-12);
         assert!((wrap_pi(0.3) - 0.3).abs() < 1e-15);
+    }
+
+    #[test]
+    fn a_non_finite_coefficient_covariance_or_residual_is_caught_after_the_solve() {
+        let ok = lsq::Solution {
+            beta: vec![1.0, 2.0],
+            cov: nalgebra::DMatrix::identity(2, 2),
+            residual: vec![0.1, -0.1, 0.0],
+            residual_rms: 0.08,
+            condition: 1.0,
+            inflation: vec![1.0, 1.0],
+        };
+        assert_eq!(non_finite_in(&ok), None);
+        let mut s = ok.clone();
+        s.cov[(1, 0)] = f64::NAN;
+        assert_eq!(non_finite_in(&s), Some("the covariance"));
+        let mut s = ok.clone();
+        s.beta[0] = f64::INFINITY;
+        assert_eq!(non_finite_in(&s), Some("a coefficient"));
+        let mut s = ok;
+        s.residual_rms = f64::INFINITY;
+        assert_eq!(non_finite_in(&s), Some("the residual"));
     }
 }

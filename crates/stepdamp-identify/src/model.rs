@@ -18,7 +18,10 @@ pub struct Model {
 }
 
 impl Model {
-    /// The model a fit found. Negative friction estimates (noise around zero) become 0.
+    /// The model a fit found. Negative friction estimates become 0 (friction cannot drive the
+    /// rotor); the fit warns when that happens ([`crate::fit::Warning::CoulombNotPositive`],
+    /// [`crate::fit::Warning::ViscousNegative`]). `D` is the fitted one, or the fallback the fit
+    /// held when the logs could not separate it ([`Fit::viscous_used`]).
     pub fn from_fit(f: &Fit) -> Model {
         Model {
             detent: f

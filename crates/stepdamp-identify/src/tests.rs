@@ -352,3 +352,184 @@ fn phase_currents_give_the_same_fit_as_the_q_current() {
         assert!((a - b).abs() < 1e-9);
     }
 }
+
+/// `log` with a constant torque `c_nm` (a load, or a current offset) added to the effort.
+fn with_constant_torque(mut log: RunLog, c_nm: f64) -> RunLog {
+    let km = synthetic_options().km_nm_per_a;
+    for i in &mut log.i_q_a {
+        *i += c_nm / km;
+    }
+    log
+}
+
+#[test]
+fn forward_at_one_speed_and_reverse_at_another_fit_fs_and_the_constant_torque_with_d_held() {
+    // Two levels (forward 1 rad/s, reverse 2 rad/s) for Fs, D and c: D is held, not a
+    // linear-dependence error.
+    let truth = synthetic_model();
+    let logs: Vec<RunLog> = [1.0, -2.0]
+        .iter()
+        .enumerate()
+        .map(|(i, &w)| with_constant_torque(synthetic_log(w, &truth, 0.01, i as u64), 0.005))
+        .collect();
+    let mut o = synthetic_options();
+    o.viscous_fallback_nm_s_per_rad = 0.002;
+    let f = fit(&logs, &o).unwrap();
+    assert!(f.viscous_nm_s_per_rad.is_none());
+    assert_eq!(f.viscous_used, 0.002);
+    let c = f.offset_nm.expect("both directions: the constant torque is fitted");
+    assert!((c.value - 0.005).abs() < 2e-4, "{c:?}");
+    assert!((f.coulomb_friction_nm.value - 0.01).abs() < 2e-4, "{:?}", f.coulomb_friction_nm);
+    for t in &truth.detent {
+        let h = f.harmonics.iter().find(|h| h.order == t.order).unwrap();
+        assert!((h.amplitude_nm.value - t.amplitude_nm).abs() < 5e-4, "{h:?}");
+    }
+    assert!(
+        f.warnings.iter().any(|w| matches!(
+            w,
+            Warning::OneSpeedPerDirection { add_run: ("forward", s), viscous_used, .. }
+                if (s - 2.0).abs() < 0.01 && *viscous_used == 0.002
+        )),
+        "{:?}",
+        f.warnings
+    );
+    assert!(!f.warnings.iter().any(|w| matches!(w, Warning::SingleSpeed { .. } | Warning::OneDirection { .. })));
+    let text: Vec<String> = f.warnings.iter().map(ToString::to_string).collect();
+    assert!(text.iter().any(|t| t.contains("D held at 2.000e-3") && t.contains("forward at 2.000 rad/s")), "{text:?}");
+}
+
+#[test]
+fn every_combination_of_directions_and_speeds_fits_the_terms_its_levels_separate() {
+    let truth = synthetic_model();
+    let speeds = [1.0, -1.0, 2.0, -2.0];
+    let all: Vec<RunLog> = speeds
+        .iter()
+        .enumerate()
+        .map(|(i, &w)| with_constant_torque(synthetic_log(w, &truth, 0.005, 10 + i as u64), 0.004))
+        .collect();
+    let mut o = synthetic_options();
+    o.viscous_fallback_nm_s_per_rad = 0.002;
+    for mask in 1u32..16 {
+        let chosen: Vec<f64> = (0..4).filter(|b| mask & (1 << b) != 0).map(|b| speeds[b]).collect();
+        let logs: Vec<RunLog> = (0..4).filter(|b| mask & (1 << b) != 0).map(|b| all[b].clone()).collect();
+        let f = fit(&logs, &o).unwrap_or_else(|e| panic!("{chosen:?}: {e}"));
+        let both = chosen.iter().any(|&w| w > 0.0) && chosen.iter().any(|&w| w < 0.0);
+        let two_speeds_one_way = [1.0, -1.0].iter().any(|&d| chosen.contains(&d) && chosen.contains(&(2.0 * d)));
+        assert_eq!(f.offset_nm.is_some(), both, "{chosen:?}");
+        assert_eq!(f.viscous_nm_s_per_rad.is_some(), two_speeds_one_way, "{chosen:?}");
+        // Whatever is held is named in a warning.
+        if !both {
+            assert!(f.warnings.iter().any(|w| matches!(w, Warning::OneDirection { .. })), "{chosen:?}");
+        }
+        if !two_speeds_one_way {
+            assert!(
+                f.warnings
+                    .iter()
+                    .any(|w| matches!(w, Warning::SingleSpeed { .. } | Warning::OneSpeedPerDirection { .. })),
+                "{chosen:?}: {:?}",
+                f.warnings
+            );
+        }
+        // The harmonics never depend on which friction terms were fitted; Fs is right
+        // whenever c is separated from it (D held at the truth otherwise).
+        for t in &truth.detent {
+            let h = f.harmonics.iter().find(|h| h.order == t.order).unwrap();
+            assert!((h.amplitude_nm.value - t.amplitude_nm).abs() < 5e-4, "{chosen:?}: {h:?}");
+        }
+        if both {
+            assert!((f.coulomb_friction_nm.value - 0.01).abs() < 3e-4, "{chosen:?}: {:?}", f.coulomb_friction_nm);
+        }
+    }
+}
+
+#[test]
+fn a_least_squares_failure_prints_its_cause_once_in_an_error_chain() {
+    use std::error::Error as _;
+    let e = crate::fit::FitError::from(crate::lsq::LsqError::Singular(9.8e12));
+    // What anyhow's `{:#}` prints: the message, then ": " and each source in turn.
+    let mut chain = e.to_string();
+    let mut src = e.source();
+    while let Some(s) = src {
+        chain += &format!(": {s}");
+        src = s.source();
+    }
+    assert_eq!(chain.matches("linearly dependent").count(), 1, "{chain}");
+    assert!(chain.starts_with("least squares failed: the regressors are linearly dependent"), "{chain}");
+}
+
+/// A log of `n` samples at 20 kHz turning at `speed` rad/s, with a constant current.
+fn constant_speed_log(speed: f64, n: usize) -> RunLog {
+    let q = std::f64::consts::TAU / 4000.0;
+    RunLog {
+        source: format!("const {speed} x{n}"),
+        t_s: (0..n).map(|i| i as f64 / 20e3).collect(),
+        theta_fb_rad: (0..n).map(|i| ((speed * i as f64 / 20e3 / q).floor() + 0.5) * q).collect(),
+        i_q_a: vec![0.1; n],
+        iq_cmd_a: None,
+        iq_source: crate::log::IqSource::Column,
+        ignored_columns: Vec::new(),
+    }
+}
+
+#[test]
+fn a_short_fast_log_is_reported_as_too_short_not_as_a_rotor_that_does_not_move() {
+    let o = synthetic_options();
+    // 40 samples (2 ms) at 500 rad/s: moving, but the speed filter's start-up takes most of it.
+    let e = fit(&[constant_speed_log(500.0, 40)], &o).unwrap_err();
+    let text = e.to_string();
+    assert!(matches!(e, crate::fit::FitError::TooShort { samples: 40, needed, .. } if needed > 40), "{e:?}");
+    assert!(text.contains("too short") && text.contains("5.000e2 rad/s") && !text.contains("does not move"), "{text}");
+    // Fewer samples than any fit needs.
+    let e = fit(&[constant_speed_log(500.0, 10)], &o).unwrap_err();
+    assert!(matches!(e, crate::fit::FitError::TooShort { samples: 10, .. }), "{e:?}");
+    // A long log that stands still is the one that "does not move".
+    let e = fit(&[constant_speed_log(0.0, 4000)], &o).unwrap_err();
+    assert!(matches!(e, crate::fit::FitError::NoMotion { periods, .. } if periods < 1e-9), "{e:?}");
+    assert!(e.to_string().contains("does not move"), "{e}");
+}
+
+#[test]
+fn negative_fs_from_a_one_direction_load_is_warned_about_and_clamped_to_zero_in_the_profile() {
+    // Forward only, with a load pushing the rotor along by 30 mN·m: Fs comes out ≈ −20 mN·m.
+    let truth = synthetic_model();
+    let logs = vec![with_constant_torque(synthetic_log(1.0, &truth, 0.01, 5), -0.03)];
+    let mut o = synthetic_options();
+    o.viscous_fallback_nm_s_per_rad = 0.002;
+    let f = fit(&logs, &o).unwrap();
+    assert!((f.coulomb_friction_nm.value + 0.02).abs() < 5e-4, "{:?}", f.coulomb_friction_nm);
+    assert!(
+        f.warnings.iter().any(|w| matches!(w, Warning::CoulombNotPositive { one_direction: Some("forward"), .. })),
+        "{:?}",
+        f.warnings
+    );
+    let text: Vec<String> = f.warnings.iter().map(ToString::to_string).collect();
+    assert!(
+        text.iter().any(|t| t.contains("clamped to 0 in the profile") && t.contains("only forward travel")),
+        "{text:?}"
+    );
+    assert_eq!(Model::from_fit(&f).coulomb_friction_nm, 0.0);
+    // A clearly positive Fs gives no such warning.
+    let f = fit(&[synthetic_log(1.0, &truth, 0.01, 5)], &o).unwrap();
+    assert!(!f.warnings.iter().any(|w| matches!(w, Warning::CoulombNotPositive { .. })), "{:?}", f.warnings);
+}
+
+#[test]
+fn currents_out_of_range_are_an_error_naming_the_logs_not_a_profile_with_infinite_values() {
+    let truth = synthetic_model();
+    let o = synthetic_options();
+    let mut logs: Vec<RunLog> =
+        [1.0, -1.0].iter().enumerate().map(|(i, &w)| synthetic_log(w, &truth, 0.01, i as u64)).collect();
+    for i in &mut logs[1].i_q_a {
+        *i *= 1e200;
+    }
+    let e = fit(&logs, &o).unwrap_err();
+    let text = e.to_string();
+    assert!(matches!(e, crate::fit::FitError::NonFinite { .. }), "{e:?}");
+    assert!(text.contains("synthetic 1") && text.contains("synthetic -1") && text.contains("out of range"), "{text}");
+    assert!(text.contains("in synthetic -1"), "the log with the largest current is named: {text}");
+    // A current that is not a number (an in-memory log; files are checked when read).
+    logs[1].i_q_a.iter_mut().for_each(|i| *i *= 1e-200);
+    logs[1].i_q_a[500] = f64::NAN;
+    let text = fit(&logs, &o).unwrap_err().to_string();
+    assert!(text.contains("not a number in synthetic -1"), "{text}");
+}
