@@ -151,7 +151,9 @@ impl LoadAngleObserver {
     /// configured `Km` (bounded to `[0.5, 2]`).
     #[inline]
     pub fn km_correction(&self, st: &ObserverState) -> f32 {
-        crate::bound(self.km / st.km_hat, 0.5, 2.0)
+        // Before the first period (and right after a restart) there is no estimate yet:
+        // no correction, rather than the bound that `Km/0` would hit.
+        if st.km_hat > 0.0 { crate::bound(self.km / st.km_hat, 0.5, 2.0) } else { 1.0 }
     }
 
     /// Takes this period's current sample `i` and the command's electrical angle `(sin θc,
@@ -173,8 +175,13 @@ impl LoadAngleObserver {
         if !st.started {
             st.started = true;
             st.last_current = i;
-            st.r_hat_ohm = self.r_ohm;
-            st.km_hat = self.km;
+            // The configured values at power-on; what a restart kept otherwise.
+            if st.r_hat_ohm <= 0.0 {
+                st.r_hat_ohm = self.r_ohm;
+            }
+            if st.km_hat <= 0.0 {
+                st.km_hat = self.km;
+            }
             return 0.0;
         }
         let v = st.voltage_history[self.delay_periods];
@@ -202,10 +209,14 @@ impl LoadAngleObserver {
         if direction == 0.0 {
             // Standstill: no back-EMF, so what remains along the current is resistance
             // error; trimmed once the current has settled on its command.
+            // A rotor still ringing after a stop makes back-EMF too, mostly across the
+            // current (δ is small); a resistance error makes it only along the current. So
+            // trim only while the fast back-EMF across the current is below the floor.
             let cmd = st.command_history[0];
             let settled = (cmd.d - id).abs() + (cmd.q - iq).abs() < 0.02 * (cmd.d.abs() + cmd.q.abs());
             let i2 = id * id + iq * iq;
-            if settled && i2 > 1e-4 {
+            let across = (st.e_dq.q * id - st.e_dq.d * iq) * libm::sqrtf(1.0 / i2.max(1e-12));
+            if settled && i2 > 1e-4 && across.abs() < self.e_floor_v {
                 let de = (ed * id + eq * iq) / i2;
                 st.r_hat_ohm = (st.r_hat_ohm + self.r_trim_gain * de).max(0.25 * self.r_ohm).min(4.0 * self.r_ohm);
             }
@@ -242,7 +253,15 @@ impl LoadAngleObserver {
             && st.km_hat.is_finite()
             && st.km_hat > 0.0)
         {
-            *st = ObserverState { started: false, ..ObserverState::default() };
+            // Restart the filters, but keep what was learnt of the motor if it is sound:
+            // the standstill trim of R̂ cannot be redone while the motor runs.
+            let keep = |x: f32, nominal: f32| if x.is_finite() && x > 0.0 { x } else { nominal };
+            *st = ObserverState {
+                started: false,
+                r_hat_ohm: keep(st.r_hat_ohm, self.r_ohm),
+                km_hat: keep(st.km_hat, self.km),
+                ..ObserverState::default()
+            };
         }
         st.delta_rad
     }
@@ -327,6 +346,38 @@ mod tests {
         run(&obs, &mut st, 20.0, 0.1, R, 20_000);
         assert!((st.km_hat - KM).abs() < 0.01 * KM, "{}", st.km_hat);
         assert!((obs.km_correction(&st) - 0.8).abs() < 0.01);
+    }
+
+    #[test]
+    fn a_restart_keeps_the_trimmed_resistance_and_applies_no_km_correction() {
+        let obs = observer(1.2 * R, KM);
+        let mut st = ObserverState::default();
+        run(&obs, &mut st, 0.0, 0.0, R, 1_000);
+        assert!((st.r_hat_ohm - R).abs() < 0.001 * R, "{}", st.r_hat_ohm);
+        obs.update(&mut st, Ab { a: f32::NAN, b: 0.0 }, 0.0, 1.0, 0.0, 0.0, 0.0);
+        assert!((st.r_hat_ohm - R).abs() < 0.001 * R, "restart lost R̂: {}", st.r_hat_ohm);
+        assert_eq!(obs.km_correction(&st), 1.0);
+        assert_eq!(obs.km_correction(&ObserverState::default()), 1.0);
+    }
+
+    #[test]
+    fn a_rotor_settling_after_a_stop_does_not_corrupt_the_resistance_trim() {
+        // The command is at standstill, but the rotor still creeps into place, 0.5 rad/s
+        // decaying over 50 ms, 0.2 rad behind: its back-EMF, mostly across the current,
+        // must not be read as resistance error.
+        let obs = observer(R, KM);
+        let mut st = ObserverState::default();
+        run(&obs, &mut st, 0.0, 0.0, R, 1_000);
+        let i = Dq { d: 1.9, q: 0.0 };
+        let mut worst = 0.0f32;
+        for n in 0..4_000 {
+            let w = 0.5 * libm::expf(-(n as f32) * TS / 0.05);
+            obs.update(&mut st, rot(0.0, i), 0.0, 1.0, 0.0, 0.0, 0.0);
+            let e = Dq { d: KM * w * libm::sinf(0.2), q: KM * w * libm::cosf(0.2) };
+            obs.record(&mut st, rot(0.0, Dq { d: R * i.d + e.d, q: e.q }), i);
+            worst = worst.max((st.r_hat_ohm - R).abs());
+        }
+        assert!(worst < 0.01 * R, "R̂ off by {:.2} % while the rotor settled", 100.0 * worst / R);
     }
 
     #[test]
