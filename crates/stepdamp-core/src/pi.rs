@@ -36,13 +36,17 @@ impl Pi {
 
     /// Commits the integrator after the caller limited the output `unlimited` (from
     /// [`Pi::output`]): integrate unless limited and the error pushes further out; keep
-    /// `|integral| ≤ bound`. A non-finite integrator restarts from zero.
+    /// `|integral| ≤ bound`. An integration that gives a non-finite value (NaN or infinite
+    /// error or integrator) restarts the integrator from zero, as does a non-finite
+    /// integrator that is held.
     #[inline]
     pub fn commit(&self, integral: &mut f32, e: f32, unlimited: f32, limited: bool, bound: f32) {
         if !limited || e * unlimited < 0.0 {
-            *integral = (*integral + self.ki_ts * e).max(-bound).min(bound);
-        }
-        if !integral.is_finite() {
+            // Test finiteness before bounding: `f32::max` drops a NaN operand, so bounding
+            // first would turn a NaN error into `−bound` instead of a restart from zero.
+            let x = *integral + self.ki_ts * e;
+            *integral = if x.is_finite() { crate::bound(x, -bound, bound) } else { 0.0 };
+        } else if !integral.is_finite() {
             *integral = 0.0;
         }
     }
@@ -90,6 +94,37 @@ mod tests {
         run(&pi, &mut a, &mut ia, 1.0, 10.0, 200);
         run(&pi, &mut b, &mut ib, 1.0, 10.0, 200);
         assert!((ia - 1.0).abs() < 0.02 && (ib - 1.0).abs() < 0.02, "{ia} {ib}");
+    }
+
+    #[test]
+    fn a_non_finite_error_restarts_the_integrator_from_zero() {
+        let pi = Pi::for_winding(0.9, 2.5e-3, 1500.0, 5e-5);
+        for e in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+            // Not limited: the sum is non-finite, so the integrator restarts at 0 (not ±bound).
+            let mut integ = 1.5f32;
+            let u = pi.output(integ, e);
+            pi.commit(&mut integ, e, u, false, 10.0);
+            assert_eq!(integ, 0.0, "e = {e}");
+        }
+        // Limited, with an infinite error that would pull back inside: same.
+        for e in [f32::INFINITY, f32::NEG_INFINITY] {
+            let mut integ = 1.5f32;
+            pi.commit(&mut integ, e, -e, true, 10.0);
+            assert_eq!(integ, 0.0, "e = {e}, limited");
+        }
+        // Limited with a NaN error: no evidence it pulls back inside, so the (finite)
+        // integrator is held.
+        let mut integ = 1.5f32;
+        pi.commit(&mut integ, f32::NAN, 20.0, true, 10.0);
+        assert_eq!(integ, 1.5);
+        // A NaN integrator held by a limited output restarts too.
+        let mut integ = f32::NAN;
+        pi.commit(&mut integ, 1.0, 50.0, true, 10.0);
+        assert_eq!(integ, 0.0);
+        // A finite step still saturates at the bound.
+        let mut integ = 9.9f32;
+        pi.commit(&mut integ, 1e6, 1.0, false, 10.0);
+        assert_eq!(integ, 10.0);
     }
 
     proptest! {
