@@ -16,7 +16,10 @@ pub const UNITS_PER_ELECTRICAL_REV: f64 = 4_294_967_296.0;
 pub struct Position(pub i64);
 
 impl Position {
-    /// Electrical angle `θe` in rad, in `[−π, π)`. Resolution 2π·2⁻²⁴ ≈ 3.7·10⁻⁷ rad.
+    /// Electrical angle `θe` in rad, in `[−π, π]`: the low 32 bits as a signed fraction
+    /// of a turn, so `−π` for a half turn; the last 64 units below a half turn round to
+    /// `+π` in `f32` (both ends are the same angle). Resolution 2π·2⁻²⁴ ≈ 3.7·10⁻⁷ rad
+    /// near ±π, finer towards 0.
     #[inline]
     pub fn electrical_angle_rad(self) -> f32 {
         // The low 32 bits as a signed fraction of a turn keeps |θe| ≤ π, where sinf is
@@ -45,11 +48,18 @@ impl Position {
 
 /// Wrapping microstep / phase accumulator: `θ_cmd` advanced once per control period.
 ///
-/// The commanded speed is turned into a fixed increment per period once (when it changes),
-/// so the angle is an exact integer sum: after `n` periods at constant speed the position
-/// is exactly `n·increment` (mod 2⁶⁴). The only error is the rounding of the speed to the
-/// increment, at most ½ unit per period: a relative speed error below `0.5 / increment`
-/// (≈ 3·10⁻⁷ at 1 rad/s for `Nr = 50` and 20 kHz), which never grows into a drift.
+/// The commanded speed is turned into a fixed integer increment per period once (when it
+/// changes), so the angle is an exact integer sum: after `n` periods at constant speed the
+/// position is exactly `start + n·increment` (mod 2⁶⁴), however long it runs; no rounding
+/// error accumulates in the sum itself.
+///
+/// What is *not* exact is the speed: it is quantised to whole units per period, i.e. to
+/// `2π / (2³²·Nr·Ts)` rad/s, and rounded to the nearest step. So the commanded position
+/// moves at a speed within half a quantum of the one requested, and departs from the ideal
+/// real-valued `ω·t` linearly, by at most half a unit per period. For `Nr = 50` at 20 kHz:
+/// the quantum is 5.85·10⁻⁷ rad/s (mechanical), the error at most 2.93·10⁻⁷ rad/s, i.e.
+/// ≤ 1.05 mrad (0.06°) per hour of running relative to the requested real speed, whatever
+/// the speed (a relative error below `0.5 / increment`, ≈ 3·10⁻⁷ at 1 rad/s).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct MicrostepAccumulator {
     /// The commanded position `θ_cmd`.
@@ -112,28 +122,66 @@ mod tests {
         }
     }
 
+    /// `start + n·increment` reduced into `i64` with exact 128-bit arithmetic: the position
+    /// that `n` periods must reach, computed independently of the accumulator.
+    fn expected_position(start: i64, increment: i64, n: u64) -> i64 {
+        let exact = i128::from(start) + i128::from(increment) * i128::from(n);
+        // Two's-complement reduction mod 2⁶⁴, by arithmetic rather than by a cast.
+        let m = exact.rem_euclid(1i128 << 64);
+        if m >= 1i128 << 63 { (m - (1i128 << 64)) as i64 } else { m as i64 }
+    }
+
     #[test]
-    fn accumulator_has_no_drift_over_a_billion_steps() {
-        // 10^9 periods at 20 kHz is 13.9 hours. Stepping one at a time would give the same
-        // integer as advance_by (integer addition is associative); check the arithmetic
-        // against the exact commanded angle.
+    fn accumulator_is_exact_over_a_billion_steps() {
+        // 10^9 periods at 20 kHz is 13.9 hours.
         let ts = 1.0 / 20_000.0;
         let speed = 7.3_f32; // rad/s
         let upr = units_per_rad_s(50, ts);
-        let mut acc = MicrostepAccumulator::default();
+        let mut acc = MicrostepAccumulator { position: Position(-123_456_789), increment: 0 };
         acc.set_speed(speed, upr);
+        // The increment is the requested speed rounded to whole units per period: 7.3 rad/s
+        // (7.30000019 as f32) is 7.3·50·2³²/(2π·20000) = 12 475 066.605… units, so 12 475 067.
+        assert_eq!(acc.increment, 12_475_067);
         let n: u64 = 1_000_000_000;
         acc.advance_by(n);
-        assert_eq!(acc.position.0, acc.increment * n as i64);
-        // The only error is the rounding of the speed to one increment: ≤ ½ unit/period.
-        let exact_units = f64::from(speed) * upr * n as f64;
-        let err_units = (acc.position.0 as f64 - exact_units).abs();
-        assert!(err_units <= 0.5 * n as f64, "err {err_units}");
-        // That rounding is a fixed speed error, 4·10⁻⁸ relative here, not a growing drift:
-        // 12 mrad of a 5.3·10⁵ rad move over 13.9 h.
-        let err_rad = acc.position.mechanical_rad_f64(50) - f64::from(speed) * ts * n as f64;
-        let rel = err_rad / (f64::from(speed) * ts * n as f64);
+        let want = expected_position(-123_456_789, 12_475_067, n);
+        assert_eq!(acc.position.0, want);
+        // 1.2475067e16 units: the electrical angle is the low 32 bits of that, exactly.
+        let turns = (12_475_067i128 * 1_000_000_000 - 123_456_789) as f64 / UNITS_PER_ELECTRICAL_REV;
+        let frac = turns - libm::round(turns);
+        assert!((f64::from(acc.position.electrical_angle_rad()) - frac * core::f64::consts::TAU).abs() < 1e-6);
+        // Against the ideal real-valued motion the error grows linearly, bounded by half a
+        // unit per period (the speed quantisation): here 0.39 unit/period, 11.6 mrad after
+        // 13.9 h of a 3.65·10⁵ rad move (3·10⁻⁸ relative), and at most 14.6 mrad.
+        let ideal_units = f64::from(speed) * upr * n as f64;
+        let err_units = (acc.position.0 + 123_456_789) as f64 - ideal_units;
+        assert!(err_units.abs() <= 0.5 * n as f64, "err {err_units}");
+        let unit_rad = core::f64::consts::TAU / UNITS_PER_ELECTRICAL_REV / 50.0;
+        assert!((err_units * unit_rad).abs() < 0.0147, "{} rad", err_units * unit_rad);
+        let rel = err_units / ideal_units;
         assert!(rel.abs() <= 0.5 / acc.increment as f64, "{rel}");
+    }
+
+    #[test]
+    fn speed_quantum_matches_the_documented_figures() {
+        // One unit per period at Nr = 50, 20 kHz: 5.85·10⁻⁷ rad/s; half of it per hour:
+        // 1.05 mrad.
+        let quantum = 1.0 / units_per_rad_s(50, 1.0 / 20_000.0);
+        assert!((quantum - 5.85e-7).abs() < 0.01e-7, "{quantum}");
+        assert!((0.5 * quantum * 3600.0 - 1.05e-3).abs() < 0.01e-3);
+    }
+
+    #[test]
+    fn electrical_angle_stays_within_plus_minus_pi() {
+        use core::f32::consts::PI;
+        assert_eq!(Position(1 << 31).electrical_angle_rad(), -PI);
+        // Just below a half turn, f32 rounding reaches +π (the same angle as −π).
+        let near = Position((1 << 31) - 1).electrical_angle_rad();
+        assert!(near <= PI && near > PI - 1e-6, "{near}");
+        for p in [0i64, 1, -1, (1 << 31) - 64, (1 << 31) - 65, i64::MAX, i64::MIN] {
+            let th = Position(p).electrical_angle_rad();
+            assert!((-PI..=PI).contains(&th), "{p}: {th}");
+        }
     }
 
     #[test]
@@ -158,6 +206,31 @@ mod tests {
     }
 
     proptest! {
+        #[test]
+        fn advance_by_is_additive_across_wraps(
+            start in any::<i64>(), increment in any::<i64>(), a in any::<u64>(), b in any::<u64>()
+        ) {
+            let (a, b) = (a >> 1, b >> 1); // so that a + b fits a u64
+            let mut split = MicrostepAccumulator { position: Position(start), increment };
+            split.advance_by(a);
+            split.advance_by(b);
+            let mut whole = MicrostepAccumulator { position: Position(start), increment };
+            whole.advance_by(a + b);
+            prop_assert_eq!(split, whole);
+            prop_assert_eq!(whole.position.0, expected_position(start, increment, a + b));
+        }
+
+        #[test]
+        fn advance_by_matches_exact_arithmetic_for_real_speeds(
+            start in any::<i64>(), speed in -600.0f32..600.0, n in 0u64..100_000_000_000
+        ) {
+            let mut acc = MicrostepAccumulator { position: Position(start), increment: 0 };
+            acc.set_speed(speed, units_per_rad_s(50, 5e-5));
+            let inc = acc.increment;
+            acc.advance_by(n);
+            prop_assert_eq!(acc.position.0, expected_position(start, inc, n));
+        }
+
         #[test]
         fn wrapping_diff_inverts_addition(a in any::<i64>(), d in any::<i64>()) {
             let p = Position(a);
