@@ -233,7 +233,7 @@ impl LoadAngleObserver {
             st.fast_weight = crate::bound(1.0 - noise / st.swing_power_rad2.max(1e-12), 0.0, 1.0);
             // Weak back-EMF at low speed: shrink towards the patent's law (δ = 0).
             let w = e2 / (e2 + self.e_floor_v * self.e_floor_v);
-            st.delta_rad = w * (slow + st.fast_weight * swing);
+            st.delta_rad = if cfg!(feature = "ablate-load-angle") { 0.0 } else { w * (slow + st.fast_weight * swing) };
             // Gate on the back-EMF the command implies (a transient |ê| at a low command
             // speed would make the ratio explode), and bound each sample.
             let speed = speed_rad_s.abs();

@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# Ablation of the estimated-angle compensation (README, "What the angle estimate buys"):
+# the same three open-loop sweeps as scripts/figures.sh, once with the normal build and
+# once with the core's `ablate-load-angle` feature, which keeps the current-loop inverse,
+# the R̂ trim and the K̂m correction but evaluates the compensation at δ̂ = 0 (θ_cmd).
+# Writes docs/ablation.txt. The ablated build goes to its own target directory.
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+cargo build --release -p stepdamp
+CARGO_TARGET_DIR=target/ablate-load-angle cargo build --release -p stepdamp --features stepdamp-core/ablate-load-angle
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+{
+    for build in "full:target/release/stepdamp" "load angle forced to 0:target/ablate-load-angle/release/stepdamp"; do
+        for case in "nominal|--motor patent-motor" "load 0.171 N·m|--motor patent-motor --load-torque 0.171" \
+            "low damping|--motor docs/profiles/patent-motor-low-damping.toml"; do
+            printf '\n## %s build, %s\n' "${build%%:*}" "${case%%|*}"
+            # shellcheck disable=SC2086
+            "${build#*:}" --quiet sweep ${case#*|} --mode open-loop --compensation off,patent,estimated --out "$tmp/s" |
+                grep -v -e '^wrote ' -e ' simulated in '
+        done
+    done
+} > docs/ablation.txt
+echo "wrote docs/ablation.txt"
