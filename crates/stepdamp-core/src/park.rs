@@ -51,7 +51,32 @@ mod tests {
         assert_eq!(dq, Dq { d: 2.0, q: 0.0 });
     }
 
+    #[test]
+    fn q_axis_sign_matches_design_section_3() {
+        // design.md §3: i_q = −i_a sin θe + i_b cos θe.
+        // θe = π/2 (sin 1, cos 0): phase A current is −q, phase B current is +d.
+        assert_eq!(park(Ab { a: 1.0, b: 0.0 }, 1.0, 0.0), Dq { d: 0.0, q: -1.0 });
+        assert_eq!(park(Ab { a: 0.0, b: 1.0 }, 1.0, 0.0), Dq { d: 1.0, q: 0.0 });
+        // θe = 0: phase B current is +q.
+        assert_eq!(park(Ab { a: 0.0, b: 1.0 }, 0.0, 1.0), Dq { d: 0.0, q: 1.0 });
+        // θe = −π/2: phase A current is +q.
+        assert_eq!(park(Ab { a: 1.0, b: 0.0 }, -1.0, 0.0), Dq { d: 0.0, q: 1.0 });
+        // Inverse: a q command at θe = 0 is a phase B voltage, at π/2 a negative phase A one.
+        assert_eq!(inverse_park(Dq { d: 0.0, q: 2.0 }, 0.0, 1.0), Ab { a: 0.0, b: 2.0 });
+        assert_eq!(inverse_park(Dq { d: 0.0, q: 2.0 }, 1.0, 0.0), Ab { a: -2.0, b: 0.0 });
+    }
+
     proptest! {
+        #[test]
+        fn park_matches_the_design_formula(
+            a in -100.0f32..100.0, b in -100.0f32..100.0, th in -10.0f32..10.0
+        ) {
+            let (s, c) = (libm::sinf(th), libm::cosf(th));
+            let x = park(Ab { a, b }, s, c);
+            prop_assert_eq!(x.q, -a * s + b * c);
+            prop_assert_eq!(x.d, a * c + b * s);
+        }
+
         #[test]
         fn park_then_inverse_park_is_identity(
             d in -100.0f32..100.0, q in -100.0f32..100.0, th in -10.0f32..10.0
