@@ -158,3 +158,83 @@ proptest! {
         }
     }
 }
+
+/// Servo parameters with all loop gains zero, so the q command is the feed-forward alone.
+fn feed_forward_only(compensation: Compensation, detent: &'static [Harmonic]) -> Params<'static> {
+    let mut p = params(Mode::Servo, compensation);
+    p.servo = ServoGains {
+        velocity_nm_s_per_rad: 0.0,
+        position_nm_per_rad: 0.0,
+        position_integral_nm_per_rad_s: 0.0,
+        velocity_filter_hz: 300.0,
+    };
+    p.motor.detent = detent;
+    p
+}
+
+#[test]
+fn servo_friction_feed_forward_is_fs_over_km_signed_by_the_speed_command() {
+    let off = Config::new(&feed_forward_only(Compensation::Off, &[])).unwrap();
+    let on = Config::new(&feed_forward_only(Compensation::Patent, &[])).unwrap();
+    let fs_over_km = 0.01f32 / 0.3f32;
+    for (speed, want) in [(5.0, fs_over_km), (-5.0, -fs_over_km), (0.0, 0.0)] {
+        let (mut a, mut b) = (State::default(), State::default());
+        a.command_speed(&off, speed);
+        b.command_speed(&on, speed);
+        for k in 0..50u32 {
+            // The rotor creeps the other way: position, velocity and integral errors all
+            // exist, but their gains are zero.
+            let m = Measurement { i_a_a: 0.1, i_b_a: -0.2, encoder_count: k.wrapping_neg() };
+            let qa = step(&off, &mut a, &m).signals.i_dq_cmd.q;
+            let qb = step(&on, &mut b, &m).signals.i_dq_cmd.q;
+            assert_eq!(qa, 0.0, "speed {speed}");
+            assert_eq!(qb - qa, want, "speed {speed}, period {k}");
+        }
+    }
+}
+
+#[test]
+fn servo_compensation_is_evaluated_at_theta_fb_not_theta_cmd() {
+    let cfg = Config::new(&feed_forward_only(Compensation::Patent, &DETENT)).unwrap();
+    let series = HarmonicSeries::new(&DETENT, 1.0 / 0.3).unwrap();
+    // Rotor held at count 30 of 4000: the centre of the count, 30.5/80 electrical turn.
+    let held = Measurement { encoder_count: 30, ..Default::default() };
+    let th_fb = 30.5 / 80.0 * core::f32::consts::TAU;
+    let (s, c) = libm::sincosf(th_fb);
+    let (at_fb, slope, curv) = series.eval_with_derivatives(s, c);
+
+    // Standstill command at θ = 0: the lead terms vanish (ωe = 0), no friction.
+    let mut st = State::default();
+    for _ in 0..10 {
+        let out = step(&cfg, &mut st, &held);
+        assert!((out.signals.theta_fb.electrical_angle_rad() - th_fb).abs() < 1e-6);
+        assert_eq!(out.signals.theta_cmd.electrical_angle_rad(), 0.0);
+        let q = out.signals.i_dq_cmd.q;
+        assert!((q - at_fb).abs() < 1e-5, "{q} vs series at θ_fb {at_fb}");
+        assert!((q - series.eval(0.0)).abs() > 0.01, "{q} looks like the series at θ_cmd");
+    }
+
+    // Moving command (2 rad/s, ωe = 100 rad/s): the series at θ_fb plus its lead
+    // `(1/ωc)·ωe·(S' + Td·ωe·S'')` (ωc = 2π·1.5 kHz, Td = 1.5 periods) and the friction.
+    let mut st = State::default();
+    st.command_speed(&cfg, 2.0);
+    let we = 2.0 * 50.0;
+    let lead = 1.0 / (core::f32::consts::TAU * 1500.0) * we * (slope + 1.5 / 20_000.0 * we * curv);
+    let want = at_fb + lead + 0.01 / 0.3;
+    for k in 0..200 {
+        let out = step(&cfg, &mut st, &held);
+        let q = out.signals.i_dq_cmd.q;
+        assert!((q - want).abs() < 1e-5, "period {k}: {q} vs {want}");
+        // θ_cmd moves on, θ_fb does not: the command's own angle would give another value.
+        let th_cmd = out.signals.theta_cmd.electrical_angle_rad();
+        if k > 100 {
+            assert!((th_cmd - th_fb).abs() > 0.1);
+            let (sc, cc) = libm::sincosf(th_cmd);
+            let (v, sl, cu) = series.eval_with_derivatives(sc, cc);
+            let at_cmd = v + 1.0 / (core::f32::consts::TAU * 1500.0) * we * (sl + 1.5 / 20_000.0 * we * cu);
+            if (at_cmd - at_fb - lead).abs() > 1e-3 {
+                assert!((q - at_cmd - 0.01 / 0.3).abs() > 1e-4);
+            }
+        }
+    }
+}
