@@ -234,14 +234,40 @@ pub struct Config {
     /// `Td` in s: the computation delay plus half a period of zero-order hold. (Measured on
     /// the simulator: the residual is smallest at exactly these values.)
     pub(crate) compensation_lead2_s: f32,
-    /// Servo gains divided by Km (A per rad/s, A per rad, A per rad·s).
+    /// Velocity gain `Kp_vel/Km`: q current in A per rad/s of velocity error.
     pub(crate) kpv_a: f32,
+    /// Position gain `Kp_pos/Km`: q current in A per rad of position error.
     pub(crate) kpp_a: f32,
+    /// Position integral gain `Ki_pos/Km`: q current in A per rad·s of integrated position
+    /// error.
     pub(crate) kip_a: f32,
     /// Friction feed-forward current `Fs/Km` in A (zero when compensation is off).
     pub(crate) friction_a: f32,
     /// Largest measured current accepted, in A (beyond it a sample is a fault).
     pub(crate) current_sample_limit_a: f32,
+    /// `1/Vdc` in 1/V (the modulator's per-period division, done once here).
+    pub(crate) inv_bus_voltage: f32,
+    /// Largest commanded speed magnitude, rad/s (see [`Config::max_speed_rad_s`]).
+    pub(crate) max_speed_rad_s: f32,
+}
+
+/// Largest advance of the commanded electrical angle per control period, in turns: a
+/// quarter turn. Half a turn is the Nyquist limit (beyond it the angle sequence aliases to
+/// a slower speed in the other direction, and the current loop sees a frame that turns
+/// the wrong way); a quarter keeps a factor two from it, so that the sampled sin/cos still
+/// describe the rotation unambiguously, including the one-period computation delay.
+pub const MAX_ELECTRICAL_TURN_PER_PERIOD: f64 = 0.25;
+
+fn finite(field: &'static str, input: f32, derived: f32) -> Result<(), ConfigError> {
+    if derived.is_finite() {
+        Ok(())
+    } else {
+        Err(ConfigError::Invalid {
+            field,
+            value: input,
+            reason: "too large or too small: a derived value is not finite",
+        })
+    }
 }
 
 /// Corner of the load-angle observer's back-EMF filter, Hz.
@@ -322,7 +348,14 @@ impl Config {
         }
         let on = p.compensation != Compensation::Off;
         let estimated = p.compensation == Compensation::Estimated && p.mode == Mode::OpenLoop;
-        Ok(Config {
+        let observer_floor_v = 0.02 * r * hold.max(0.1 * limit);
+        // Every value derived below must be finite, or the step would compute with inf/NaN:
+        // finite inputs can still overflow (a Km of 1e-40 makes 1/Km infinite, a limit of
+        // 1e20 A makes limit² infinite). The field named is the input that overflowed.
+        // (The observer's; the rest is checked on the built `Config`.)
+        finite("motor.inductance_h", l, l / ts)?;
+        finite("motor.resistance_ohm", r, observer_floor_v)?;
+        let cfg = Config {
             mode: p.mode,
             topology: d.topology,
             pole_pairs: m.pole_pairs,
@@ -354,7 +387,7 @@ impl Config {
                     km,
                     ts,
                     OBSERVER_BANDWIDTH_HZ,
-                    0.02 * r * hold.max(0.1 * limit),
+                    observer_floor_v,
                     usize::from(d.computation_delay_periods),
                 ))
             } else {
@@ -365,7 +398,51 @@ impl Config {
             kip_a: kip / km,
             friction_a: if on { fs / km } else { 0.0 },
             current_sample_limit_a: 100.0 * limit,
-        })
+            inv_bus_voltage: 1.0 / vdc,
+            max_speed_rad_s: (core::f64::consts::TAU * MAX_ELECTRICAL_TURN_PER_PERIOD
+                / (f64::from(m.pole_pairs) * f64::from(ts))) as f32,
+        };
+        cfg.check_finite(p)?;
+        Ok(cfg)
+    }
+
+    /// Every `f32` the step reads is finite; else the input that made it overflow.
+    fn check_finite(&self, p: &Params<'_>) -> Result<(), ConfigError> {
+        let (m, d, s) = (&p.motor, &p.drive, &p.servo);
+        finite("motor.km_nm_per_a", m.km_nm_per_a, 1.0 / m.km_nm_per_a)?;
+        finite("drive.pwm_hz", d.pwm_hz, self.period_s)?;
+        finite("drive.pwm_hz", d.pwm_hz, self.units_per_rad_s as f32)?;
+        finite("drive.pwm_hz", d.pwm_hz, self.max_speed_rad_s)?;
+        finite("drive.pwm_hz", d.pwm_hz, self.encoder.rad_s_per_count())?;
+        finite("drive.bus_voltage_v", d.bus_voltage_v, self.inv_bus_voltage)?;
+        finite("drive.bus_voltage_v", d.bus_voltage_v, self.integral_bound_v)?;
+        finite("drive.current_limit_a", d.current_limit_a, self.open_loop_iq_limit_a)?;
+        finite("drive.current_limit_a", d.current_limit_a, self.current_sample_limit_a)?;
+        finite("motor.inductance_h", m.inductance_h, self.pi.kp)?;
+        finite("motor.resistance_ohm", m.resistance_ohm, self.pi.ki_ts)?;
+        finite("drive.current_loop_bandwidth_hz", d.current_loop_bandwidth_hz, self.compensation_lead_s)?;
+        finite("drive.pwm_hz", d.pwm_hz, self.compensation_lead2_s)?;
+        finite("servo.velocity_nm_s_per_rad", s.velocity_nm_s_per_rad, self.kpv_a)?;
+        finite("servo.position_nm_per_rad", s.position_nm_per_rad, self.kpp_a)?;
+        finite("servo.position_integral_nm_per_rad_s", s.position_integral_nm_per_rad_s, self.kip_a)?;
+        finite("motor.coulomb_friction_nm", m.coulomb_friction_nm, self.friction_a)?;
+        if !self.compensation.is_finite() {
+            let largest = m.detent.iter().map(|h| h.amplitude_nm).fold(0.0, f32::max);
+            return Err(ConfigError::Invalid {
+                field: "detent.amplitude_nm",
+                value: largest,
+                reason: "too large for motor.km_nm_per_a: the compensation current is not finite",
+            });
+        }
+        Ok(())
+    }
+
+    /// Largest commanded speed magnitude in rad/s (mechanical): the speed at which the
+    /// commanded electrical angle advances a quarter turn per period
+    /// ([`MAX_ELECTRICAL_TURN_PER_PERIOD`]), `(π/2)/(Nr·Ts)`; 628 rad/s (6000 rpm) for
+    /// `Nr = 50` at 20 kHz. [`crate::State::command_speed`] clamps to it.
+    pub fn max_speed_rad_s(&self) -> f32 {
+        self.max_speed_rad_s
     }
 
     /// Control period `Ts` in s.

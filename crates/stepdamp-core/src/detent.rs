@@ -71,6 +71,11 @@ impl HarmonicSeries {
         Ok(s)
     }
 
+    /// All coefficients finite (a scale of `1/Km` can overflow them).
+    pub fn is_finite(&self) -> bool {
+        self.sin_coef.iter().chain(self.cos_coef.iter()).all(|c| c.is_finite())
+    }
+
     /// Highest order present (0 for an empty series).
     pub fn max_order(&self) -> usize {
         self.max_order

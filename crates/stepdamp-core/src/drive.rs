@@ -8,14 +8,21 @@ use crate::observer::ObserverState;
 use crate::park::{Ab, Dq, inverse_park, park};
 
 /// What the drive samples at the start of a period.
+///
+/// Directions: a positive phase current flows in the direction a positive winding voltage
+/// drives it (`v_a = v_α − v_γ` on three legs, `v_A+ − v_A−` on H-bridges: into the
+/// winding from leg α / A+), so that `τ = Km(−i_a sin θe + i_b cos θe)` (design.md §2).
+/// The encoder counts up when the rotor turns in the positive direction: positive count
+/// = positive `θ`, the direction a positive speed command and a positive `i_q` turn it.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Measurement {
-    /// Phase A current in A.
+    /// Phase A current in A (positive from leg α / A+ into winding A).
     pub i_a_a: f32,
-    /// Phase B current in A.
+    /// Phase B current in A (positive from leg β / B+ into winding B).
     pub i_b_a: f32,
-    /// Raw free-running encoder counter (wrapping; 0 at power-on with the rotor at θ = 0).
-    /// Open loop only records it (leave it 0 when there is no encoder).
+    /// Raw free-running encoder counter (wrapping; 0 at power-on with the rotor at θ = 0;
+    /// counting up for positive rotation). Open loop only records it (leave it 0 when
+    /// there is no encoder).
     pub encoder_count: u32,
 }
 
@@ -65,12 +72,21 @@ pub struct Output {
 }
 
 impl State {
-    /// Sets the commanded speed in rad/s (mechanical). A non-finite speed is ignored.
+    /// Sets the commanded speed in rad/s (mechanical), clamped to
+    /// `±`[`Config::max_speed_rad_s`] (beyond a quarter electrical turn per period the
+    /// sampled angle would alias). A non-finite speed is ignored.
     pub fn command_speed(&mut self, cfg: &Config, speed_rad_s: f32) {
         if speed_rad_s.is_finite() {
-            self.speed_cmd_rad_s = speed_rad_s;
-            self.command.set_speed(speed_rad_s, cfg.units_per_rad_s);
+            let max = cfg.max_speed_rad_s;
+            let speed = crate::bound(speed_rad_s, -max, max);
+            self.speed_cmd_rad_s = speed;
+            self.command.set_speed(speed, cfg.units_per_rad_s);
         }
+    }
+
+    /// The current-loop integrators (d, q) in V.
+    pub fn current_loop_integrals_v(&self) -> Dq {
+        Dq { d: self.integral_d_v, q: self.integral_q_v }
     }
 
     /// The commanded speed in rad/s.
@@ -158,7 +174,7 @@ pub fn step(cfg: &Config, st: &mut State, m: &Measurement) -> Output {
     };
     let v_unlim = Dq { d: pi.output(st.integral_d_v, e.d), q: pi.output(st.integral_q_v, e.q) };
     let v_ab_req = inverse_park(v_unlim, sin, cos);
-    let modulated = cfg.topology.modulate(v_ab_req, cfg.bus_voltage_v);
+    let modulated = cfg.topology.modulate_with_inverse(v_ab_req, cfg.bus_voltage_v, cfg.inv_bus_voltage);
     let limited = modulated.scale < 1.0;
     let bound = cfg.integral_bound_v;
     pi.commit(&mut st.integral_d_v, e.d, v_unlim.d, limited, bound);

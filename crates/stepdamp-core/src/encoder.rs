@@ -1,7 +1,9 @@
 //! Incremental encoder: raw wrapping counter → exact [`Position`] and a filtered velocity.
 //!
 //! The counter is a free-running `u32` (a 16-bit hardware timer is widened by the firmware),
-//! zero at power-on where the rotor is at `θ = 0`. Each period the wrapping difference of
+//! zero at power-on where the rotor is at `θ = 0`, and counting *up* when the rotor turns
+//! in the positive direction (positive `θ`, the direction a positive speed command and a
+//! positive `i_q` turn it): if the hardware counts the other way, negate the counter. Each period the wrapping difference of
 //! the counter (±2³¹ counts at most between two samples) moves an exact count of whole
 //! revolutions and a remainder in `[0, cpr)`, so the position never drifts. Velocity is the
 //! count difference divided by `Ts`, low-pass filtered: its quantum before the filter is
@@ -46,6 +48,11 @@ impl Encoder {
         self.counts_per_rev
     }
 
+    /// Velocity of one count per period, rad/s (`2π/(cpr·Ts)`).
+    pub fn rad_s_per_count(&self) -> f32 {
+        self.rad_s_per_count
+    }
+
     /// Takes this period's raw counter value; returns the rotor position.
     #[inline]
     pub fn update(&self, st: &mut EncoderState, raw: u32) -> Position {
@@ -67,9 +74,9 @@ impl Encoder {
     #[inline]
     pub fn position(&self, st: &EncoderState) -> Position {
         let np = u64::from(self.pole_pairs);
-        // rem·Nr < 2³⁰, so the shift cannot overflow.
         // The centre of the count's interval [n, n+1): the unbiased estimate whichever way
-        // the rotor turns (rem + ½ counts; 2·rem + 1 < 2²¹, so the shift cannot overflow).
+        // the rotor turns (rem + ½ counts; (2·rem + 1)·Nr < 2²¹·2¹⁰, so the shift by 31 stays
+        // below 2⁶² and cannot overflow).
         let frac = (((2 * u64::from(st.rem) + 1) * np) << 31) / u64::from(self.counts_per_rev);
         Position(st.revs.wrapping_mul((np << 32) as i64).wrapping_add(frac as i64))
     }

@@ -65,7 +65,8 @@ pub mod pi;
 
 pub use angle::{MicrostepAccumulator, Position};
 pub use config::{
-    Compensation, Config, ConfigError, DriveSettings, Mode, MotorModel, PATENT_MOTOR_DETENT, Params, ServoGains,
+    Compensation, Config, ConfigError, DriveSettings, MAX_ELECTRICAL_TURN_PER_PERIOD, Mode, MotorModel,
+    PATENT_MOTOR_DETENT, Params, ServoGains,
 };
 pub use detent::{Harmonic, HarmonicSeries, MAX_HARMONIC_ORDER};
 pub use drive::{Measurement, Output, Signals, State, step};
