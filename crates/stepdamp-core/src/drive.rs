@@ -7,6 +7,20 @@ use crate::modulator::LegDuties;
 use crate::observer::ObserverState;
 use crate::park::{Ab, Dq, inverse_park, park};
 
+/// Consecutive rejected current samples after which the current sensor is declared
+/// faulty: 20 periods, 1 ms at 20 kHz.
+///
+/// Up to `CURRENT_SENSOR_FAULT_PERIODS − 1` rejected samples in a row (an ADC glitch, a
+/// lost conversion) are bridged by repeating the last good sample. From the
+/// `CURRENT_SENSOR_FAULT_PERIODS`-th on, the current loop is blind, so the drive stops
+/// driving: [`step`] returns the topology's zero-voltage duties (all legs at ½, see
+/// [`crate::modulator::Topology::neutral`]), holds the current-loop integrators at zero and
+/// raises [`State::current_sensor_fault`], until a good sample arrives. 1 ms is about ten
+/// current-loop time constants at 1.5 kHz: long enough to ride out glitches, short
+/// compared with the winding time constant `L/R` (2.8 ms for the patent motor), so a
+/// stuck sensor cannot drive the current far before the drive lets go.
+pub const CURRENT_SENSOR_FAULT_PERIODS: u32 = 20;
+
 /// What the drive samples at the start of a period.
 ///
 /// Directions: a positive phase current flows in the direction a positive winding voltage
@@ -39,8 +53,11 @@ pub struct State {
     /// Load-angle observer (open loop, estimated compensation).
     pub observer: ObserverState,
     /// Periods whose current sample was rejected (non-finite or beyond 100× the current
-    /// limit); the previous good sample was used instead.
+    /// limit), in total (saturating); the previous good sample was used instead, or, from
+    /// [`CURRENT_SENSOR_FAULT_PERIODS`] in a row on, zero volts.
     pub sample_faults: u32,
+    /// Rejected samples in a row (0 after a good one).
+    consecutive_sample_faults: u32,
 }
 
 /// Internal signals of one period (what a run log records).
@@ -84,6 +101,13 @@ impl State {
         }
     }
 
+    /// Whether the current sensor is declared faulty: the last
+    /// [`CURRENT_SENSOR_FAULT_PERIODS`] or more samples in a row were rejected. While it
+    /// is, [`step`] puts zero volts on the windings; it clears on the next good sample.
+    pub fn current_sensor_fault(&self) -> bool {
+        self.consecutive_sample_faults >= CURRENT_SENSOR_FAULT_PERIODS
+    }
+
     /// The current-loop integrators (d, q) in V.
     pub fn current_loop_integrals_v(&self) -> Dq {
         Dq { d: self.integral_d_v, q: self.integral_q_v }
@@ -104,22 +128,33 @@ impl State {
 ///
 /// Faults: a non-finite or absurd (beyond 100× the current limit) current sample is
 /// replaced by the last good one and counted in [`State::sample_faults`]; the integrators
-/// stay bounded and finite, so control resumes normally on the next good sample.
+/// stay bounded and finite, so control resumes normally on the next good sample. From the
+/// [`CURRENT_SENSOR_FAULT_PERIODS`]-th rejected sample in a row on, the step returns the
+/// zero-voltage duties instead ([`State::current_sensor_fault`]): current loop integrators
+/// zero, the load-angle observer restarted (keeping its `R̂`, `K̂m`), the servo position
+/// integral held, zero currents and volts and a voltage scale of 0 in the signals; the
+/// command angle and the encoder keep running. The next good sample resumes control.
 #[inline]
 pub fn step(cfg: &Config, st: &mut State, m: &Measurement) -> Output {
     let lim = cfg.current_sample_limit_a;
     let i_ab = if m.i_a_a.is_finite() && m.i_b_a.is_finite() && m.i_a_a.abs() <= lim && m.i_b_a.abs() <= lim {
         let x = Ab { a: m.i_a_a, b: m.i_b_a };
         st.last_current = x;
+        st.consecutive_sample_faults = 0;
         x
     } else {
         st.sample_faults = st.sample_faults.saturating_add(1);
+        st.consecutive_sample_faults = st.consecutive_sample_faults.saturating_add(1);
         st.last_current
     };
     let theta_cmd = st.command.position;
 
     // The encoder is read in both modes; open loop only records it.
     let theta_fb = cfg.encoder.update(&mut st.encoder, m.encoder_count);
+
+    if st.current_sensor_fault() {
+        return sensor_fault(cfg, st, theta_cmd, theta_fb);
+    }
     let theta_ctl = match cfg.mode {
         Mode::OpenLoop => theta_cmd,
         Mode::Servo => theta_fb,
@@ -195,6 +230,35 @@ pub fn step(cfg: &Config, st: &mut State, m: &Measurement) -> Output {
             i_dq_cmd,
             v_ab,
             voltage_scale: modulated.scale,
+        },
+    }
+}
+
+/// The period of a declared current-sensor fault: zero volts, no integration.
+#[cold]
+fn sensor_fault(cfg: &Config, st: &mut State, theta_cmd: Position, theta_fb: Position) -> Output {
+    st.integral_d_v = 0.0;
+    st.integral_q_v = 0.0;
+    if cfg.observer.is_some() {
+        // Its current and voltage history is broken: restart it on the next good sample,
+        // keeping what it learnt of the motor.
+        let (r_hat_ohm, km_hat) = (st.observer.r_hat_ohm, st.observer.km_hat);
+        let mut fresh = ObserverState::default();
+        fresh.r_hat_ohm = r_hat_ohm;
+        fresh.km_hat = km_hat;
+        st.observer = fresh;
+    }
+    st.command.advance();
+    Output {
+        duties: cfg.topology.neutral(),
+        signals: Signals {
+            theta_cmd,
+            theta_fb,
+            omega_fb_rad_s: st.encoder.velocity_rad_s,
+            i_dq: Dq::default(),
+            i_dq_cmd: Dq::default(),
+            v_ab: Ab::default(),
+            voltage_scale: 0.0,
         },
     }
 }

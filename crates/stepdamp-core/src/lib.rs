@@ -69,7 +69,7 @@ pub use config::{
     PATENT_MOTOR_DETENT, Params, ServoGains,
 };
 pub use detent::{Harmonic, HarmonicSeries, MAX_HARMONIC_ORDER};
-pub use drive::{Measurement, Output, Signals, State, step};
+pub use drive::{CURRENT_SENSOR_FAULT_PERIODS, Measurement, Output, Signals, State, step};
 pub use modulator::{LegDuties, Topology};
 pub use park::{Ab, Dq};
 

@@ -323,6 +323,73 @@ fn config_rejects_finite_values_whose_derived_numbers_overflow() {
     assert!(matches!(Config::new(&p), Err(ConfigError::Invalid { field: "motor.resistance_ohm", .. })));
 }
 
+#[test]
+fn a_stuck_nan_current_sensor_lets_go_of_the_windings_then_recovers() {
+    for (mode, comp, topology) in [
+        (Mode::OpenLoop, Compensation::Patent, Topology::ThreeLeg),
+        (Mode::OpenLoop, Compensation::Estimated, Topology::TwoHBridge),
+        (Mode::Servo, Compensation::Patent, Topology::ThreeLeg),
+    ] {
+        let mut p = params(mode, comp);
+        p.drive.topology = topology;
+        let cfg = Config::new(&p).unwrap();
+        let mut st = State::default();
+        st.command_speed(&cfg, 3.0);
+        let good = |k: u32| Measurement { i_a_a: 1.0 + 0.001 * k as f32, i_b_a: -0.5, encoder_count: k / 10 };
+        let bad = |k: u32| Measurement { i_a_a: f32::NAN, i_b_a: f32::NAN, ..good(k) };
+        for k in 0..100 {
+            step(&cfg, &mut st, &good(k));
+        }
+        assert_ne!(st.current_loop_integrals_v(), Dq::default());
+        // Glitches shorter than the limit are bridged, and a good sample restarts the count.
+        for round in 0..3 {
+            for k in 0..CURRENT_SENSOR_FAULT_PERIODS - 1 {
+                let out = step(&cfg, &mut st, &bad(100 + k));
+                assert!(!st.current_sensor_fault(), "{mode:?} round {round} period {k}");
+                assert_ne!(out.duties, cfg.topology().neutral());
+            }
+            step(&cfg, &mut st, &good(200));
+        }
+        // A long run of NaN: from the CURRENT_SENSOR_FAULT_PERIODS-th on, zero volts.
+        let before = st.sample_faults;
+        let pos0 = st.position_command();
+        for k in 0..2000 {
+            let out = step(&cfg, &mut st, &bad(300 + k));
+            let tripped = k + 1 >= CURRENT_SENSOR_FAULT_PERIODS;
+            assert_eq!(st.current_sensor_fault(), tripped, "{mode:?} period {k}");
+            if tripped {
+                assert_eq!(out.duties, cfg.topology().neutral());
+                assert_eq!(cfg.topology().winding_voltages_per_vdc(&out.duties), (0.0, 0.0));
+                assert_eq!(st.current_loop_integrals_v(), Dq::default());
+                assert_eq!(out.signals.voltage_scale, 0.0);
+                assert_eq!(out.signals.v_ab, Ab::default());
+            }
+        }
+        assert_eq!(st.sample_faults, before + 2000);
+        // The command kept running through the fault.
+        assert_eq!(st.position_command().wrapping_diff(pos0), 2000 * st_increment(&cfg, 3.0));
+        // Good samples: the flag clears at once and control resumes, finite and in range.
+        let out = step(&cfg, &mut st, &good(2400));
+        assert!(!st.current_sensor_fault());
+        assert_ne!(out.duties, cfg.topology().neutral());
+        for k in 2401..3000 {
+            let out = step(&cfg, &mut st, &good(k));
+            assert!(out.duties.0.iter().all(|d| (0.0..=1.0).contains(d)));
+            assert!(out.signals.i_dq_cmd.q.is_finite() && out.signals.v_ab.a.is_finite());
+        }
+        assert!(!st.current_sensor_fault());
+        assert_eq!(st.sample_faults, before + 2000);
+    }
+}
+
+/// The accumulator increment of a speed command.
+fn st_increment(cfg: &Config, speed: f32) -> i64 {
+    let mut st = State::default();
+    st.command_speed(cfg, speed);
+    step(cfg, &mut st, &Measurement::default());
+    st.position_command().0
+}
+
 /// Runs the drive at standstill on two RL windings (the patent motor's R, L, no back-EMF),
 /// the duties taking effect `delay` periods after they are computed, exactly integrated.
 /// Returns per period: (i_a, voltage scale, d and q integrators).
