@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # Builds the Cortex-M4F firmware, runs it in QEMU (mps2-an386) and diffs its semihosting
-# output against golden.txt. Writes the firmware's .text size to size.txt.
+# output against golden.txt, and compares the firmware's .text size with the one recorded
+# in size.txt (failing if it grew by more than 10 %). Writes no tracked file unless blessed.
 #
 #   bash firmware/qemu-m4/run-golden.sh           # check (exit 1 and show the diff on mismatch)
-#   bash firmware/qemu-m4/run-golden.sh --bless   # rewrite golden.txt from this run
+#   bash firmware/qemu-m4/run-golden.sh --bless   # rewrite golden.txt and size.txt from this run
 #
 # QEMU: `qemu-system-arm` on PATH, else .ci/cache/qemu/usr/bin/ (see .ci/install-qemu.sh),
 # or the path in $QEMU_SYSTEM_ARM.
@@ -78,20 +79,39 @@ def name(i):
 print(sum(section(i)[5] for i in range(shnum) if name(i) == ".text"))
 EOF
 )"
-{
-    echo "text_bytes=$text_bytes"
-    echo "# .text of firmware/qemu-m4 (thumbv7em-none-eabihf, release: lto, opt-level \"s\"):"
-    echo "# stepdamp-core controller + test plant + cortex-m-rt + semihosting + core::fmt floats"
-} >"$here/size.txt"
-echo "run-golden: .text = $text_bytes bytes (size.txt)"
+size_file="$here/size.txt"
+write_size() {
+    {
+        echo "text_bytes=$text_bytes"
+        echo "# .text of firmware/qemu-m4 (thumbv7em-none-eabihf, release: lto, opt-level \"s\"):"
+        echo "# stepdamp-core controller + test plant + cortex-m-rt + semihosting + core::fmt floats"
+    } >"$size_file"
+}
 
 if [[ $bless -eq 1 ]]; then
     cat "$out" >"$here/golden.txt"
-    echo "run-golden: blessed golden.txt ($(wc -l <"$here/golden.txt") lines)"
+    write_size
+    echo "run-golden: blessed golden.txt ($(wc -l <"$here/golden.txt") lines) and size.txt (.text = $text_bytes bytes)"
     exit 0
 fi
+
+fail=0
 if ! diff -u --label golden.txt --label qemu-output "$here/golden.txt" "$out"; then
     echo "run-golden: FAIL: QEMU output differs from golden.txt (bless with --bless if intended)" >&2
-    exit 1
+    fail=1
+else
+    echo "run-golden: ok, output matches golden.txt ($(wc -l <"$out") lines)"
 fi
-echo "run-golden: ok, output matches golden.txt ($(wc -l <"$out") lines)"
+
+# Size: at most 10 % above the recorded .text (smaller is fine; bless to record it).
+recorded="$(sed -n 's/^text_bytes=\([0-9][0-9]*\)$/\1/p' "$size_file" 2>/dev/null | head -n1)"
+if [[ -z "$recorded" ]]; then
+    echo "run-golden: FAIL: no text_bytes=N line in $size_file (measured .text = $text_bytes bytes; --bless records it)" >&2
+    fail=1
+elif (( text_bytes * 10 > recorded * 11 )); then
+    echo "run-golden: FAIL: .text grew by more than 10 %: measured $text_bytes bytes, recorded $recorded bytes in size.txt (bless with --bless if intended)" >&2
+    fail=1
+else
+    echo "run-golden: ok, .text = $text_bytes bytes, recorded $recorded bytes in size.txt ($(( (text_bytes - recorded) * 100 / recorded )) %, limit +10 %)"
+fi
+exit "$fail"
