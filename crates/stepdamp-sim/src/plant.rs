@@ -9,9 +9,11 @@
 //! ```
 //!
 //! Coulomb friction follows Karnopp's stick/slip rule: inside a velocity band `|ω| < ω_s`
-//! the rotor sticks (`dω/dt = 0`) while the other torques stay within `Fs`, and breaks
-//! away with `Fs` opposing them otherwise; outside the band it is `−Fs·sgn(ω)`. The band is
-//! the speed change that `Fs` alone makes in one integration step, so the model is never
+//! the rotor sticks while the other torques stay within `Fs`, and breaks away with `Fs`
+//! opposing them otherwise; outside the band it is `−Fs·sgn(ω)`. Sticking is exact: a
+//! stuck rotor has `ω = 0` (set before and after every RK4 step, [`PlantParams::stick`]),
+//! not just `dω/dt = 0`, so it does not creep at its small in-band speed. The band is the
+//! speed change that `Fs` alone makes in one integration step, so the model is never
 //! stiff. Integration is classical RK4 with the voltages held over the step.
 
 use crate::profile::Profile;
@@ -53,12 +55,16 @@ pub struct PlantState {
 }
 
 impl PlantParams {
-    /// The plant a profile describes, with no load torque.
+    /// The plant a profile describes, with no load torque. The profile should be valid
+    /// ([`Profile::validate`]; [`crate::ClosedLoop`] checks it): this never panics, but a
+    /// detent term of order 0 (meaningless) is ignored and a repeated order adds up.
     pub fn from_profile(p: &Profile) -> Self {
         let max = p.motor.detent.iter().map(|h| usize::from(h.order)).max().unwrap_or(0);
         let mut detent = vec![(0.0, 0.0); max];
-        for h in &p.motor.detent {
-            detent[usize::from(h.order) - 1] = (h.amplitude_nm * h.phase_rad.cos(), h.amplitude_nm * h.phase_rad.sin());
+        for h in p.motor.detent.iter().filter(|h| h.order > 0) {
+            let d: &mut (f64, f64) = &mut detent[usize::from(h.order) - 1];
+            d.0 += h.amplitude_nm * h.phase_rad.cos();
+            d.1 += h.amplitude_nm * h.phase_rad.sin();
         }
         PlantParams {
             km: p.motor.km_nm_per_a,
@@ -125,8 +131,7 @@ impl PlantParams {
         let inv_l = 1.0 / self.l;
         let di_a = (va - self.r * x.i_a + self.km * x.omega * s) * inv_l;
         let di_b = (vb - self.r * x.i_b - self.km * x.omega * c) * inv_l;
-        let tau_m = self.km * (-x.i_a * s + x.i_b * c);
-        let others = tau_m - self.detent_series(s, c) - self.d * x.omega + self.load_torque_nm;
+        let others = self.non_friction_torque(x, s, c);
         let tau = if x.omega.abs() >= stick_band {
             others - self.fs.copysign(x.omega)
         } else if others.abs() <= self.fs {
@@ -138,25 +143,49 @@ impl PlantParams {
         PlantState { i_a: di_a, i_b: di_b, theta: x.omega, omega: tau / self.j }
     }
 
+    /// Every torque on the rotor but Coulomb friction, given `(sin θe, cos θe)`.
+    #[inline]
+    fn non_friction_torque(&self, x: &PlantState, s: f64, c: f64) -> f64 {
+        let tau_m = self.km * (-x.i_a * s + x.i_b * c);
+        tau_m - self.detent_series(s, c) - self.d * x.omega + self.load_torque_nm
+    }
+
+    /// Karnopp's stuck state made exact: a rotor inside the stick band (`|ω| < band`)
+    /// whose other torques stay within `±Fs` is at rest, `ω = 0`. Without Coulomb friction
+    /// there is no sticking and the state is returned as it is.
+    #[inline]
+    pub fn stick(&self, x: &PlantState, band: f64) -> PlantState {
+        if self.fs > 0.0 && x.omega != 0.0 && x.omega.abs() < band {
+            let (s, c) = (self.nr * x.theta).sin_cos();
+            if self.non_friction_torque(x, s, c).abs() <= self.fs {
+                return PlantState { omega: 0.0, ..*x };
+            }
+        }
+        *x
+    }
+
     /// Karnopp band for an integration step of `h` s: the speed `Fs` alone changes in `h`.
     pub fn stick_band(&self, h: f64) -> f64 {
         (self.fs / self.j * h).max(1e-9)
     }
 
-    /// One RK4 step of `h` s with the voltages held.
+    /// One RK4 step of `h` s with the voltages held; a stuck rotor ([`PlantParams::stick`])
+    /// is at rest before and after the step.
     #[inline]
     pub fn rk4(&self, x: &PlantState, va: f64, vb: f64, h: f64, band: f64) -> PlantState {
+        let x = &self.stick(x, band);
         let k1 = self.derivative(x, va, vb, band);
         let k2 = self.derivative(&axpy(x, 0.5 * h, &k1), va, vb, band);
         let k3 = self.derivative(&axpy(x, 0.5 * h, &k2), va, vb, band);
         let k4 = self.derivative(&axpy(x, h, &k3), va, vb, band);
         let w = h / 6.0;
-        PlantState {
+        let next = PlantState {
             i_a: x.i_a + w * (k1.i_a + 2.0 * k2.i_a + 2.0 * k3.i_a + k4.i_a),
             i_b: x.i_b + w * (k1.i_b + 2.0 * k2.i_b + 2.0 * k3.i_b + k4.i_b),
             theta: x.theta + w * (k1.theta + 2.0 * k2.theta + 2.0 * k3.theta + k4.theta),
             omega: x.omega + w * (k1.omega + 2.0 * k2.omega + 2.0 * k3.omega + k4.omega),
-        }
+        };
+        self.stick(&next, band)
     }
 }
 
@@ -263,6 +292,45 @@ mod tests {
         let t = 4_000.0 * h;
         let want = 0.1 * p.fs / p.j * t;
         assert!((x.omega - want).abs() < 0.02 * want + band, "{} vs {want}", x.omega);
+    }
+
+    #[test]
+    fn a_stuck_rotor_does_not_creep() {
+        let mut p = patent();
+        p.detent.clear();
+        p.km = 0.0;
+        p.load_torque_nm = 0.0;
+        let h = 2.5e-5;
+        let band = p.stick_band(h);
+        // A small speed inside the stick band, not exactly 0, and nothing driving the rotor:
+        // friction holds it, so it must neither move nor keep its speed.
+        let theta0 = 0.3;
+        let mut x = PlantState { theta: theta0, omega: 0.5 * band, ..Default::default() };
+        for _ in 0..100_000 {
+            x = p.rk4(&x, 0.0, 0.0, h, band);
+        }
+        assert_eq!(x.omega, 0.0, "{x:?}");
+        assert_eq!(x.theta, theta0, "crept by {}", x.theta - theta0);
+        // The same with the speed just below the band on the other side, and a load torque
+        // within Fs.
+        p.load_torque_nm = 0.5 * p.fs;
+        let mut x = PlantState { theta: theta0, omega: -0.99 * band, ..Default::default() };
+        for _ in 0..10_000 {
+            x = p.rk4(&x, 0.0, 0.0, h, band);
+        }
+        assert_eq!((x.theta, x.omega), (theta0, 0.0), "{x:?}");
+        // Above the band it slides and slows down instead.
+        let mut x = PlantState { theta: theta0, omega: 3.0 * band, ..Default::default() };
+        x = p.rk4(&x, 0.0, 0.0, h, band);
+        assert!(x.theta > theta0, "{x:?}");
+    }
+
+    #[test]
+    fn a_profile_with_a_bad_detent_order_does_not_panic() {
+        let mut m = Profile::preset("patent-motor").unwrap();
+        m.motor.detent[0].order = 0;
+        let p = PlantParams::from_profile(&m);
+        assert!(p.detent.len() <= usize::from(m.motor.detent.iter().map(|h| h.order).max().unwrap()));
     }
 
     #[test]
