@@ -9,7 +9,7 @@
 //! the plant with `substeps` RK4 steps.
 
 use crate::plant::{PlantParams, PlantState};
-use crate::profile::Profile;
+use crate::profile::{Profile, ProfileError};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -72,6 +72,94 @@ pub enum SimError {
         /// Why.
         reason: String,
     },
+    /// The simulated motor's profile is invalid.
+    #[error("{0}")]
+    Profile(#[from] ProfileError),
+    /// The controller's profile describes other drive or encoder hardware than the
+    /// simulated motor's ([`check_same_hardware`]).
+    #[error(
+        "{motor} and {controller} differ in {key} ({motor_value} vs {controller_value}): the controller's profile may \
+         differ in the motor model (R, L, Km, detent, friction) and controller settings, not in the drive or encoder"
+    )]
+    HardwareMismatch {
+        /// The simulated motor's profile (file or preset name).
+        motor: String,
+        /// The controller's profile (file or preset name).
+        controller: String,
+        /// The key, e.g. `drive.pwm_hz`.
+        key: &'static str,
+        /// Its value in the motor's profile.
+        motor_value: String,
+        /// Its value in the controller's profile.
+        controller_value: String,
+    },
+    /// A combination of control mode and compensation that does not exist.
+    #[error("compensation {comp} in {mode} mode: {reason}")]
+    Unsupported {
+        /// The mode.
+        mode: &'static str,
+        /// The compensation.
+        comp: &'static str,
+        /// Why.
+        reason: &'static str,
+    },
+}
+
+/// Why estimated-angle compensation is not run in servo mode.
+pub const ESTIMATED_IS_OPEN_LOOP_ONLY: &str = "estimated applies to open loop; servo uses the encoder angle";
+
+/// Checks that a controller profile describes the same drive and encoder hardware as the
+/// simulated motor's: `drive.pwm_hz`, `drive.bus_voltage_v`, `drive.topology`,
+/// `drive.computation_delay_periods`, `encoder.counts_per_rev` and `motor.pole_pairs` must
+/// be equal (the simulation takes them from the motor, the controller from its own
+/// profile). The controller may differ in the motor model (R, L, Km, J, detent,
+/// friction) and in its own settings (holding current, current loop, `[servo]`): that is
+/// what a mis-identified motor is. `motor_name` and `controller_name` name the two
+/// profiles in the error (file paths or preset names).
+pub fn check_same_hardware(
+    motor: &Profile,
+    motor_name: &str,
+    controller: &Profile,
+    controller_name: &str,
+) -> Result<(), SimError> {
+    let (m, c) = (motor, controller);
+    let keys: [(&'static str, String, String); 6] = [
+        ("drive.pwm_hz", m.drive.pwm_hz.to_string(), c.drive.pwm_hz.to_string()),
+        ("drive.bus_voltage_v", m.drive.bus_voltage_v.to_string(), c.drive.bus_voltage_v.to_string()),
+        ("drive.topology", m.drive.topology.as_str().to_string(), c.drive.topology.as_str().to_string()),
+        (
+            "drive.computation_delay_periods",
+            m.drive.computation_delay_periods.to_string(),
+            c.drive.computation_delay_periods.to_string(),
+        ),
+        ("encoder.counts_per_rev", m.encoder.counts_per_rev.to_string(), c.encoder.counts_per_rev.to_string()),
+        ("motor.pole_pairs", m.motor.pole_pairs.to_string(), c.motor.pole_pairs.to_string()),
+    ];
+    for (key, motor_value, controller_value) in keys {
+        if motor_value != controller_value {
+            return Err(SimError::HardwareMismatch {
+                motor: motor_name.to_string(),
+                controller: controller_name.to_string(),
+                key,
+                motor_value,
+                controller_value,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Checks that `comp` exists in `mode`: estimated-angle compensation is an open-loop law
+/// (servo mode evaluates the compensation at the encoder angle).
+pub fn check_mode_compensation(mode: Mode, comp: Compensation) -> Result<(), SimError> {
+    if mode == Mode::Servo && comp == Compensation::Estimated {
+        return Err(SimError::Unsupported {
+            mode: mode_name(mode),
+            comp: compensation_name(comp),
+            reason: ESTIMATED_IS_OPEN_LOOP_ONLY,
+        });
+    }
+    Ok(())
 }
 
 /// Builds the core controller's configuration from a profile.
@@ -111,11 +199,15 @@ pub fn controller_config(p: &Profile, mode: Mode, comp: Compensation) -> Result<
     })
 }
 
-/// What one period shows: the plant as sampled, and the controller's signals.
+/// What one period shows: the plant as sampled, what the sensors read, and the
+/// controller's signals.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PeriodRecord {
-    /// Plant state at the sampling instant.
+    /// Plant state at the sampling instant (the truth).
     pub plant: PlantState,
+    /// What the controller was given: the sampled phase currents (with the options' noise
+    /// and quantisation) and the encoder count.
+    pub measurement: Measurement,
     /// Controller signals of this period.
     pub signals: Signals,
 }
@@ -140,11 +232,16 @@ pub struct ClosedLoop {
     counts_per_rad: f64,
     pole_pairs: u16,
     load_torque_nm: f64,
+    /// The speed command of the last period (NaN before the first): the controller's
+    /// command and the load torque's sign are set again only when it changes.
+    last_speed_cmd: f64,
 }
 
 impl ClosedLoop {
     /// A loop simulating `motor` driven by a controller configured from `controller`
-    /// (normally the same profile; another one models a mis-identified motor).
+    /// (normally the same profile; another one models a mis-identified motor, and must
+    /// describe the same hardware: [`check_same_hardware`]). Estimated-angle compensation
+    /// exists in open loop only ([`check_mode_compensation`]).
     pub fn new(
         motor: &Profile,
         controller: &Profile,
@@ -152,12 +249,39 @@ impl ClosedLoop {
         comp: Compensation,
         opts: &SimOptions,
     ) -> Result<Self, SimError> {
+        check_same_hardware(motor, &motor.name, controller, &controller.name)?;
+        check_mode_compensation(mode, comp)?;
         let cfg = controller_config(controller, mode, comp)?;
         Self::with_config(motor, cfg, opts)
     }
 
-    /// A loop around an already built controller configuration.
+    /// A loop around an already built controller configuration. The motor's profile is
+    /// validated ([`Profile::validate`]), and the configuration must be for its pole pairs,
+    /// PWM frequency, bus voltage and power stage.
     pub fn with_config(motor: &Profile, cfg: Config, opts: &SimOptions) -> Result<Self, SimError> {
+        motor.validate(&motor.name)?;
+        let mismatch = |key: &'static str, m: String, c: String| SimError::HardwareMismatch {
+            motor: motor.name.clone(),
+            controller: "the controller configuration".to_string(),
+            key,
+            motor_value: m,
+            controller_value: c,
+        };
+        if cfg.pole_pairs() != motor.motor.pole_pairs {
+            return Err(mismatch("motor.pole_pairs", motor.motor.pole_pairs.to_string(), cfg.pole_pairs().to_string()));
+        }
+        let period = 1.0 / motor.drive.pwm_hz;
+        if (f64::from(cfg.period_s()) - period).abs() > 1e-6 * period {
+            return Err(mismatch("drive.pwm_hz", motor.drive.pwm_hz.to_string(), (1.0 / cfg.period_s()).to_string()));
+        }
+        let vdc = motor.drive.bus_voltage_v;
+        if (f64::from(cfg.bus_voltage_v()) - vdc).abs() > 1e-6 * vdc {
+            return Err(mismatch("drive.bus_voltage_v", vdc.to_string(), cfg.bus_voltage_v().to_string()));
+        }
+        if cfg.topology() != Topology::from(motor.drive.topology) {
+            let cfg_topology = crate::profile::TopologyName::from(cfg.topology()).as_str().to_string();
+            return Err(mismatch("drive.topology", motor.drive.topology.as_str().to_string(), cfg_topology));
+        }
         if opts.substeps == 0 || opts.substeps > 1000 {
             return Err(SimError::Option { what: "substeps", reason: format!("{} is not in 1..=1000", opts.substeps) });
         }
@@ -190,6 +314,7 @@ impl ClosedLoop {
             counts_per_rad: f64::from(motor.encoder.counts_per_rev) / std::f64::consts::TAU,
             pole_pairs: motor.motor.pole_pairs,
             load_torque_nm: opts.load_torque_nm,
+            last_speed_cmd: f64::NAN,
             plant,
         })
     }
@@ -242,21 +367,132 @@ impl ClosedLoop {
             i_b_a: self.sample_current(sampled.i_b),
             encoder_count: ((sampled.theta * self.counts_per_rad).floor() as i64) as u32,
         };
-        self.st.command_speed(&self.cfg, speed_cmd_rad_s as f32);
+        // `!=` is also true while the last command is NaN, so the first period sets it.
+        if speed_cmd_rad_s != self.last_speed_cmd {
+            self.last_speed_cmd = speed_cmd_rad_s;
+            self.st.command_speed(&self.cfg, speed_cmd_rad_s as f32);
+            self.plant.load_torque_nm = if speed_cmd_rad_s > 0.0 {
+                -self.load_torque_nm
+            } else if speed_cmd_rad_s < 0.0 {
+                self.load_torque_nm
+            } else {
+                0.0
+            };
+        }
         let out = step(&self.cfg, &mut self.st, &m);
         let duties = if self.delay { core::mem::replace(&mut self.pending, out.duties) } else { out.duties };
         let (a, b) = self.topology.winding_voltages_per_vdc(&duties);
         let (va, vb) = (f64::from(a) * self.vdc, f64::from(b) * self.vdc);
-        self.plant.load_torque_nm = if speed_cmd_rad_s > 0.0 {
-            -self.load_torque_nm
-        } else if speed_cmd_rad_s < 0.0 {
-            self.load_torque_nm
-        } else {
-            0.0
-        };
         for _ in 0..self.substeps {
             self.x = self.plant.rk4(&self.x, va, vb, self.h, self.band);
         }
-        PeriodRecord { plant: sampled, signals: out.signals }
+        PeriodRecord { plant: sampled, measurement: m, signals: out.signals }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::runlog::LogRow;
+
+    fn patent() -> Profile {
+        Profile::preset("patent-motor").unwrap()
+    }
+
+    #[test]
+    fn a_controller_profile_for_other_hardware_is_rejected_by_key() {
+        let m = patent();
+        type Edit = fn(&mut Profile);
+        let edits: [(&str, Edit); 6] = [
+            ("drive.pwm_hz", |p| p.drive.pwm_hz = 25_000.0),
+            ("drive.bus_voltage_v", |p| p.drive.bus_voltage_v *= 2.0),
+            ("drive.topology", |p| p.drive.topology = crate::profile::TopologyName::TwoHBridge),
+            ("drive.computation_delay_periods", |p| p.drive.computation_delay_periods = 0),
+            ("encoder.counts_per_rev", |p| p.encoder.counts_per_rev = 1000),
+            ("motor.pole_pairs", |p| p.motor.pole_pairs = 100),
+        ];
+        for (key, edit) in edits {
+            let mut c = m.clone();
+            c.name = "ctl".into();
+            edit(&mut c);
+            let e = ClosedLoop::new(&m, &c, Mode::OpenLoop, Compensation::Patent, &SimOptions::default()).unwrap_err();
+            assert!(matches!(&e, SimError::HardwareMismatch { key: k, .. } if *k == key), "{key}: {e:?}");
+            let msg = e.to_string();
+            assert!(msg.contains("patent-motor") && msg.contains("ctl") && msg.contains(key), "{msg}");
+        }
+        // The motor model and the controller's own settings may differ.
+        let mut c = m.clone();
+        c.motor.resistance_ohm *= 1.2;
+        c.motor.km_nm_per_a *= 0.8;
+        c.motor.detent.pop();
+        c.motor.coulomb_friction_nm = 0.0;
+        c.drive.current_loop_bandwidth_hz = 800.0;
+        c.servo.bandwidth_hz = 20.0;
+        ClosedLoop::new(&m, &c, Mode::Servo, Compensation::Patent, &SimOptions::default()).unwrap();
+    }
+
+    #[test]
+    fn with_config_validates_the_motor_profile_and_matches_the_configuration() {
+        let good = patent();
+        let cfg = controller_config(&good, Mode::OpenLoop, Compensation::Patent).unwrap();
+        let mut bad = good.clone();
+        bad.motor.detent[0].order = 0;
+        let e = ClosedLoop::with_config(&bad, cfg, &SimOptions::default()).unwrap_err().to_string();
+        assert!(e.contains("motor.detent[0].order"), "{e}");
+        let mut bad = good.clone();
+        bad.motor.inductance_h = -1.0;
+        let e = ClosedLoop::with_config(&bad, cfg, &SimOptions::default()).unwrap_err().to_string();
+        assert!(e.contains("motor.inductance_h"), "{e}");
+        let mut other = good.clone();
+        other.drive.pwm_hz = 10_000.0;
+        other.drive.current_loop_bandwidth_hz = 1000.0;
+        let e = ClosedLoop::with_config(&other, cfg, &SimOptions::default()).unwrap_err().to_string();
+        assert!(e.contains("drive.pwm_hz"), "{e}");
+    }
+
+    #[test]
+    fn estimated_compensation_is_open_loop_only() {
+        let m = patent();
+        let e = ClosedLoop::new(&m, &m, Mode::Servo, Compensation::Estimated, &SimOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(ESTIMATED_IS_OPEN_LOOP_ONLY), "{e}");
+        ClosedLoop::new(&m, &m, Mode::OpenLoop, Compensation::Estimated, &SimOptions::default()).unwrap();
+    }
+
+    #[test]
+    fn the_run_log_holds_the_sampled_currents() {
+        let m = patent();
+        let opts = SimOptions { current_noise_a: 0.05, current_lsb_a: 0.01, ..SimOptions::default() };
+        let mut lp = ClosedLoop::new(&m, &m, Mode::OpenLoop, Compensation::Off, &opts).unwrap();
+        let mut differ = 0;
+        for k in 0..200 {
+            let rec = lp.period(5.0);
+            let row = LogRow::from_record(k, m.drive.pwm_hz, m.motor.pole_pairs, &rec);
+            assert_eq!((row.i_a_a, row.i_b_a), (f64::from(rec.measurement.i_a_a), f64::from(rec.measurement.i_b_a)));
+            // Quantised to the LSB.
+            for i in [row.i_a_a, row.i_b_a] {
+                assert!(((i / 0.01) - (i / 0.01).round()).abs() < 1e-3, "{i}");
+            }
+            differ += usize::from(row.i_a_a != rec.plant.i_a);
+        }
+        assert!(differ > 150, "only {differ} of 200 samples differ from the true current");
+    }
+
+    #[test]
+    fn a_constant_command_gives_the_same_run_as_setting_it_every_period() {
+        // The command is set only when it changes: a run that changes it every period (by
+        // going through another value and back) must match one that does not.
+        let m = patent();
+        let opts = SimOptions { load_torque_nm: 0.05, ..SimOptions::default() };
+        let mut a = ClosedLoop::new(&m, &m, Mode::OpenLoop, Compensation::Patent, &opts).unwrap();
+        let mut b = a.clone();
+        for k in 0..2000 {
+            let w = if k < 500 { 0.0 } else { 6.0 };
+            let ra = a.period(w);
+            b.last_speed_cmd = f64::NAN;
+            let rb = b.period(w);
+            assert_eq!(ra, rb, "period {k}");
+        }
     }
 }

@@ -27,11 +27,12 @@ pub mod scenario;
 pub mod sweep;
 
 pub use closed_loop::{
-    ClosedLoop, Compensation, PeriodRecord, SimError, SimOptions, compensation_name, controller_config, mode_name,
+    ClosedLoop, Compensation, ESTIMATED_IS_OPEN_LOOP_ONLY, PeriodRecord, SimError, SimOptions, check_mode_compensation,
+    check_same_hardware, compensation_name, controller_config, mode_name,
 };
 pub use plant::{PlantParams, PlantState};
 pub use profile::{PRESETS, Profile, ProfileError};
-pub use scenario::{RunMetrics, RunSpec, run};
+pub use scenario::{MAX_SPEED_RAD_S, RunMetrics, RunSpec, SETTLE_S, check_speed, run};
 pub use sweep::{SweepRow, SweepSpec, linear_grid, sweep};
 
 #[cfg(test)]

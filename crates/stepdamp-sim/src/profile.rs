@@ -97,6 +97,25 @@ pub enum TopologyName {
     TwoHBridge,
 }
 
+impl TopologyName {
+    /// The name as written in profiles.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            TopologyName::ThreeLeg => "three-leg",
+            TopologyName::TwoHBridge => "two-h-bridge",
+        }
+    }
+}
+
+impl From<Topology> for TopologyName {
+    fn from(t: Topology) -> TopologyName {
+        match t {
+            Topology::ThreeLeg => TopologyName::ThreeLeg,
+            Topology::TwoHBridge => TopologyName::TwoHBridge,
+        }
+    }
+}
+
 impl From<TopologyName> for Topology {
     fn from(t: TopologyName) -> Topology {
         match t {
@@ -334,8 +353,37 @@ impl Profile {
     }
 }
 
+/// A parser message on one line: toml's "TOML parse error at line L, column C", its
+/// source excerpt (`L | text`, caret lines dropped) and the reason become
+/// "TOML parse error at line L, column C (`text`): reason".
 fn one_line(s: &str) -> String {
-    s.lines().map(str::trim).filter(|l| !l.is_empty()).collect::<Vec<_>>().join(" ")
+    let mut head = Vec::new();
+    let mut source = Vec::new();
+    let mut rest = Vec::new();
+    for line in s.lines().map(str::trim).filter(|l| !l.is_empty()) {
+        match line.split_once('|') {
+            Some((n, text)) if n.trim().chars().all(|c| c.is_ascii_digit()) => {
+                let text = text.trim();
+                // `|` alone and `| ^^^` carets carry no words.
+                if !n.trim().is_empty() && !text.is_empty() {
+                    source.push(format!("`{text}`"));
+                }
+            }
+            _ if head.is_empty() && rest.is_empty() && line.starts_with("TOML parse error") => head.push(line),
+            _ => rest.push(line),
+        }
+    }
+    let mut out = head.join(" ");
+    if !source.is_empty() {
+        out += &format!(" ({})", source.join(" "));
+    }
+    if !rest.is_empty() {
+        if !out.is_empty() {
+            out += ": ";
+        }
+        out += &rest.join(" ");
+    }
+    out
 }
 
 #[cfg(test)]
@@ -391,6 +439,13 @@ mod tests {
         assert!(e.contains("km_nm_per_a"), "{e}");
         let e = with(|s| *s = s.replace("counts_per_rev = 4000", "counts_per_rev = \"many\"")).unwrap_err().to_string();
         assert!(e.contains("counts_per_rev"), "{e}");
+    }
+
+    #[test]
+    fn bad_toml_syntax_names_the_file_and_the_line_on_one_line() {
+        let e = with(|s| *s = s.replace("[drive]", "[drive")).unwrap_err().to_string();
+        assert!(e.starts_with("m.toml: TOML parse error at line ") && !e.contains('\n'), "{e}");
+        assert!(e.contains("`[drive`") && !e.contains('^'), "{e}");
     }
 
     #[test]

@@ -27,8 +27,9 @@ pub struct LogRow {
 }
 
 impl LogRow {
-    /// The row for period `k` of a run at `pwm_hz`; the phase currents are the plant's at
-    /// the sampling instant (what a noiseless sensor reads).
+    /// The row for period `k` of a run at `pwm_hz`; the phase currents are the sampled ones
+    /// the controller was given (with the simulation's sensor noise and quantisation), as a
+    /// real drive logs them.
     pub fn from_record(k: usize, pwm_hz: f64, pole_pairs: u16, r: &PeriodRecord) -> Self {
         let s = &r.signals;
         LogRow {
@@ -36,8 +37,8 @@ impl LogRow {
             theta_cmd_rad: s.theta_cmd.mechanical_rad_f64(pole_pairs),
             theta_fb_rad: s.theta_fb.mechanical_rad_f64(pole_pairs),
             omega_fb_rad_s: f64::from(s.omega_fb_rad_s),
-            i_a_a: r.plant.i_a,
-            i_b_a: r.plant.i_b,
+            i_a_a: f64::from(r.measurement.i_a_a),
+            i_b_a: f64::from(r.measurement.i_b_a),
             i_d_a: f64::from(s.i_dq.d),
             i_q_a: f64::from(s.i_dq.q),
             iq_cmd_a: f64::from(s.i_dq_cmd.q),

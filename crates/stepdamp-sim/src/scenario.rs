@@ -4,12 +4,20 @@
 //! standstill for `dwell_s` (as a drive does when it is enabled before it moves; the
 //! estimated-angle observer trims its resistance there), ramps the commanded speed
 //! linearly to the target in `ramp_s`, holds it to `duration_s`, and measures `ω − ω_cmd` over the
-//! last whole number of electrical periods that fit in `window_s` (at least one, if the
-//! run is long enough after the ramp). `lost_sync` is set when the rotor was ever more
-//! than half an electrical period (π electrical rad, two full steps) from the command
-//! after the ramp started: it has slipped past the unstable equilibrium.
+//! last whole number of electrical periods that fit in `window_s` and start at least
+//! [`SETTLE_S`] after the ramp (at least one period: [`RunSpec::check`] tells whether the run
+//! is long enough for that). `lost_sync` is set when the rotor was ever more than half an
+//! electrical period (π electrical rad, two full steps) from the command after the ramp
+//! started: it has slipped past the unstable equilibrium. A run whose plant diverged
+//! (non-finite samples in the window) has NaN metrics and `lost_sync`.
 
-use crate::closed_loop::{ClosedLoop, PeriodRecord};
+use crate::closed_loop::{ClosedLoop, PeriodRecord, SimError};
+
+/// Largest commanded speed in rad/s a run accepts (either sign).
+pub const MAX_SPEED_RAD_S: f64 = 10_000.0;
+
+/// Least time in s from the end of the ramp to the start of the measurement window.
+pub const SETTLE_S: f64 = 0.05;
 
 /// A constant-speed run.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -46,14 +54,76 @@ impl RunSpec {
         }
     }
 
-    /// Number of control periods in the run and the index where measurement starts.
+    /// Number of control periods in the run and the index where measurement starts: the
+    /// last whole number of electrical periods (at least one) within `window_s` and after
+    /// the ramp and [`SETTLE_S`]. For a run that fails [`RunSpec::check`] the window is one
+    /// electrical period, cut short at the end of the ramp.
     pub fn periods(&self, pwm_hz: f64, pole_pairs: u16) -> (usize, usize) {
-        let n = (self.duration_s * pwm_hz).round() as usize;
+        let (n, settled, te) = self.layout(pwm_hz, pole_pairs);
         let ramp = ((self.dwell_s + self.ramp_s) * pwm_hz).ceil() as usize;
-        let te = std::f64::consts::TAU / (f64::from(pole_pairs) * self.speed_rad_s.abs().max(1e-12));
-        let whole = (self.window_s / te).floor().max(1.0);
-        let w = ((whole * te * pwm_hz).round() as usize).min(n.saturating_sub(ramp)).max(1).min(n);
+        let window = (self.window_s * pwm_hz).min(n.saturating_sub(settled) as f64);
+        let whole = (window / te).floor().max(1.0);
+        let w = ((whole * te).round() as usize).min(n.saturating_sub(ramp)).max(1).min(n);
         (n, n - w)
+    }
+
+    /// Periods in the run, the first period after the ramp and the settling time, and the
+    /// electrical period in control periods.
+    fn layout(&self, pwm_hz: f64, pole_pairs: u16) -> (usize, usize, f64) {
+        let n = (self.duration_s * pwm_hz).round() as usize;
+        let settled = ((self.dwell_s + self.ramp_s + SETTLE_S) * pwm_hz - 1e-9).ceil().max(0.0) as usize;
+        let te = std::f64::consts::TAU / (f64::from(pole_pairs) * self.speed_rad_s.abs().max(1e-12)) * pwm_hz;
+        (n, settled, te)
+    }
+
+    /// Checks the run before it is simulated: a finite non-zero speed within
+    /// ±[`MAX_SPEED_RAD_S`], finite non-negative times, and a duration long enough that at
+    /// least one whole electrical period fits after the standstill, the ramp and
+    /// [`SETTLE_S`] (the error says the least duration that does).
+    pub fn check(&self, pwm_hz: f64, pole_pairs: u16) -> Result<(), SimError> {
+        let bad = |what: &'static str, reason: String| Err(SimError::Option { what, reason });
+        let w = self.speed_rad_s;
+        check_speed(w)?;
+        for (what, v) in [("dwell", self.dwell_s), ("ramp", self.ramp_s), ("measurement window", self.window_s)] {
+            if !(v.is_finite() && (0.0..=1e6).contains(&v)) {
+                return bad(what, format!("{v} s must be a finite time ≥ 0 s"));
+            }
+        }
+        if !(self.duration_s > 0.0 && self.duration_s <= 1e6) {
+            return bad("duration", format!("{} s must be a finite time > 0 s", self.duration_s));
+        }
+        if !(pwm_hz.is_finite() && pwm_hz > 0.0 && pole_pairs > 0) {
+            return bad("drive", format!("PWM {pwm_hz} Hz and {pole_pairs} pole pairs must be > 0"));
+        }
+        let (n, settled, te) = self.layout(pwm_hz, pole_pairs);
+        if (n.saturating_sub(settled) as f64) < te {
+            let need = (settled as f64 + te.ceil()) / pwm_hz;
+            let need_ms = (need * 1e3).ceil() / 1e3;
+            return bad(
+                "duration",
+                format!(
+                    "{} s is too short to measure at {w} rad/s: after the {} s standstill, {} s ramp and {SETTLE_S} s \
+                     settling it must hold one whole electrical period ({:.4} s); the duration must be at least {need_ms} s",
+                    self.duration_s,
+                    self.dwell_s,
+                    self.ramp_s,
+                    te / pwm_hz
+                ),
+            );
+        }
+        Ok(())
+    }
+}
+
+/// Checks a commanded speed: non-zero, finite, within ±[`MAX_SPEED_RAD_S`].
+pub fn check_speed(w: f64) -> Result<(), SimError> {
+    if w.is_finite() && w != 0.0 && w.abs() <= MAX_SPEED_RAD_S {
+        Ok(())
+    } else {
+        Err(SimError::Option {
+            what: "speed",
+            reason: format!("{w} rad/s must be non-zero, finite and within ±{MAX_SPEED_RAD_S} rad/s"),
+        })
     }
 }
 
@@ -81,6 +151,7 @@ pub fn run(
     let (n, start) = spec.periods(pwm_hz, nr);
     let ts = 1.0 / pwm_hz;
     let (mut sum2, mut lo, mut hi) = (0.0, f64::INFINITY, f64::NEG_INFINITY);
+    let mut diverged = false;
     let mut max_angle: f64 = 0.0;
     for k in 0..n {
         let t = k as f64 * ts;
@@ -93,6 +164,7 @@ pub fn run(
         max_angle = if angle.is_nan() { f64::INFINITY } else { max_angle.max(angle) };
         if k >= start {
             let e = rec.plant.omega - w_cmd;
+            diverged |= !e.is_finite();
             sum2 += e * e;
             lo = lo.min(e);
             hi = hi.max(e);
@@ -100,10 +172,91 @@ pub fn run(
         observe(k, &rec);
     }
     let m = (n - start) as f64;
+    if diverged || n == start {
+        return RunMetrics {
+            vel_err_rms_rad_s: f64::NAN,
+            vel_err_pp_rad_s: f64::NAN,
+            lost_sync: diverged || max_angle > std::f64::consts::PI,
+            max_load_angle_e_rad: max_angle,
+        };
+    }
     RunMetrics {
         vel_err_rms_rad_s: (sum2 / m).sqrt(),
         vel_err_pp_rad_s: hi - lo,
         lost_sync: max_angle > std::f64::consts::PI,
         max_load_angle_e_rad: max_angle,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Compensation, Profile, SimOptions};
+    use stepdamp_core::Mode;
+
+    #[test]
+    fn a_run_too_short_for_one_settled_electrical_period_is_rejected_with_the_least_duration() {
+        let p = Profile::preset("patent-motor").unwrap();
+        let (pwm, nr) = (p.drive.pwm_hz, p.motor.pole_pairs);
+        // 2 rad/s: one electrical period is 2π/100 = 62.8 ms; 0.2 s leaves 0 s after the
+        // 0.05 s standstill, 0.1 s ramp and 0.05 s settling.
+        let spec = RunSpec { duration_s: 0.2, window_s: 0.07, ..RunSpec::at(2.0) };
+        let e = spec.check(pwm, nr).unwrap_err();
+        assert!(matches!(e, SimError::Option { what: "duration", .. }), "{e:?}");
+        let msg = e.to_string();
+        assert!(msg.contains("at least 0.263 s") && msg.contains("electrical period"), "{msg}");
+        // The least duration it names passes, and measures one whole electrical period.
+        let ok = RunSpec { duration_s: 0.263, ..spec };
+        ok.check(pwm, nr).unwrap();
+        let (n, start) = ok.periods(pwm, nr);
+        let te = std::f64::consts::TAU / (f64::from(nr) * 2.0) * pwm;
+        assert!(((n - start) as f64 - te).abs() <= 0.5, "{} periods vs {te}", n - start);
+        assert!(start as f64 >= (0.05 + 0.1 + SETTLE_S) * pwm - 1e-6);
+        // A very low speed needs a long run.
+        let e = RunSpec::at(0.01).check(pwm, nr).unwrap_err().to_string();
+        assert!(e.contains("at least 12.767 s"), "{e}");
+        RunSpec { duration_s: 12.767, ..RunSpec::at(0.01) }.check(pwm, nr).unwrap();
+    }
+
+    #[test]
+    fn nonsense_runs_are_rejected() {
+        let p = Profile::preset("patent-motor").unwrap();
+        let (pwm, nr) = (p.drive.pwm_hz, p.motor.pole_pairs);
+        for (spec, what) in [
+            (RunSpec::at(0.0), "speed"),
+            (RunSpec::at(f64::NAN), "speed"),
+            (RunSpec::at(-MAX_SPEED_RAD_S * 1.01), "speed"),
+            (RunSpec { ramp_s: -1.0, ..RunSpec::at(5.0) }, "ramp"),
+            (RunSpec { duration_s: f64::INFINITY, ..RunSpec::at(5.0) }, "duration"),
+        ] {
+            let e = spec.check(pwm, nr).unwrap_err();
+            assert!(matches!(e, SimError::Option { what: w, .. } if w == what), "{spec:?}: {e:?}");
+        }
+        RunSpec::at(-MAX_SPEED_RAD_S).check(pwm, nr).unwrap();
+        RunSpec::at(1.0).check(pwm, nr).unwrap();
+    }
+
+    #[test]
+    fn the_default_window_is_whole_electrical_periods_after_settling() {
+        let p = Profile::preset("patent-motor").unwrap();
+        let (pwm, nr) = (p.drive.pwm_hz, p.motor.pole_pairs);
+        for w in [1.0, 4.22, 8.4, 16.9, 40.0] {
+            let spec = RunSpec::at(w);
+            let (n, start) = spec.periods(pwm, nr);
+            let te = std::f64::consts::TAU / (f64::from(nr) * w) * pwm;
+            let k = (n - start) as f64 / te;
+            assert!((k - k.round()).abs() * te <= 0.5 && k.round() >= 1.0, "{w}: {k} periods");
+            assert!((n - start) as f64 <= spec.window_s * pwm + 0.5);
+        }
+    }
+
+    #[test]
+    fn a_diverged_run_has_nan_metrics_and_lost_sync() {
+        let p = Profile::preset("patent-motor").unwrap();
+        let mut lp = ClosedLoop::new(&p, &p, Mode::OpenLoop, Compensation::Off, &SimOptions::default()).unwrap();
+        lp.kick_rotor(f64::NAN, f64::NAN);
+        let spec = RunSpec { duration_s: 0.3, window_s: 0.1, ..RunSpec::at(5.0) };
+        let m = run(&mut lp, &spec, p.drive.pwm_hz, |_, _| {});
+        assert!(m.vel_err_pp_rad_s.is_nan() && m.vel_err_rms_rad_s.is_nan() && m.lost_sync, "{m:?}");
     }
 }

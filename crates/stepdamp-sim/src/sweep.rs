@@ -1,12 +1,16 @@
 //! Parallel velocity-error sweeps over a speed grid (rayon). Deterministic: every lane has
 //! its own noise seed derived from the sweep seed and its index, so the table is the same
 //! on any number of threads.
+//!
+//! Estimated-angle compensation exists in open loop only: a sweep of both modes runs it in
+//! open loop and skips its servo lanes; a servo-only sweep that asks for it is an error.
 
 use crate::closed_loop::{
-    ClosedLoop, Compensation, SimError, SimOptions, compensation_name, controller_config, mode_name,
+    ClosedLoop, Compensation, SimError, SimOptions, check_mode_compensation, check_same_hardware, compensation_name,
+    controller_config, mode_name,
 };
 use crate::profile::Profile;
-use crate::scenario::{RunSpec, run};
+use crate::scenario::{RunSpec, check_speed, run};
 use rayon::prelude::*;
 use serde::Serialize;
 use stepdamp_core::Mode;
@@ -52,23 +56,88 @@ pub fn linear_grid(from: f64, to: f64, points: usize) -> Vec<f64> {
     }
 }
 
+impl SweepSpec {
+    /// The (mode, compensation) pairs the sweep runs, in table order: every pair but servo
+    /// with estimated-angle compensation, which exists in open loop only.
+    pub fn pairs(&self) -> Vec<(Mode, Compensation)> {
+        let mut out = Vec::new();
+        for &mode in &self.modes {
+            for &comp in &self.compensations {
+                if check_mode_compensation(mode, comp).is_ok() {
+                    out.push((mode, comp));
+                }
+            }
+        }
+        out
+    }
+
+    /// Number of runs in the sweep.
+    pub fn runs(&self) -> usize {
+        self.pairs().len() * self.speeds_rad_s.len()
+    }
+
+    /// Checks everything the sweep needs before anything is simulated: the same hardware in
+    /// both profiles ([`check_same_hardware`], naming them `motor_name` and
+    /// `controller_name`), at least one mode, compensation and speed, every speed and the
+    /// run shape ([`RunSpec::check`] at the lowest speed), the options and the
+    /// controller configurations.
+    pub fn validate(
+        &self,
+        motor: &Profile,
+        motor_name: &str,
+        controller: &Profile,
+        controller_name: &str,
+    ) -> Result<(), SimError> {
+        motor.validate(motor_name)?;
+        controller.validate(controller_name)?;
+        check_same_hardware(motor, motor_name, controller, controller_name)?;
+        let empty = |what: &'static str| Err(SimError::Option { what, reason: "the list is empty".to_string() });
+        if self.modes.is_empty() {
+            return empty("modes");
+        }
+        if self.compensations.is_empty() {
+            return empty("compensations");
+        }
+        if self.speeds_rad_s.is_empty() {
+            return empty("speeds");
+        }
+        if !self.modes.contains(&Mode::OpenLoop) {
+            for &comp in &self.compensations {
+                check_mode_compensation(Mode::Servo, comp)?;
+            }
+        }
+        let nr = motor.motor.pole_pairs;
+        for &w in &self.speeds_rad_s {
+            check_speed(w)?;
+        }
+        // The longest electrical period is at the lowest speed: if that one fits, all do.
+        let lowest = self.speeds_rad_s.iter().copied().fold(f64::INFINITY, |a, w| a.min(w.abs()));
+        RunSpec { speed_rad_s: lowest, ..self.run }.check(motor.drive.pwm_hz, nr)?;
+        for (mode, comp) in self.pairs() {
+            let cfg = controller_config(controller, mode, comp)?;
+            ClosedLoop::with_config(motor, cfg, &self.options)?;
+        }
+        Ok(())
+    }
+}
+
 /// Runs the sweep; `tick` is called once per finished lane (from any thread).
-/// Rows come ordered by mode, then compensation, then speed.
+/// Rows come ordered by mode, then compensation, then speed; servo lanes with
+/// estimated-angle compensation are not run ([`SweepSpec::pairs`]). The spec is checked
+/// first ([`SweepSpec::validate`], naming the profiles by their `name`).
 pub fn sweep(
     motor: &Profile,
     controller: &Profile,
     spec: &SweepSpec,
     tick: &(dyn Fn() + Sync),
 ) -> Result<Vec<SweepRow>, SimError> {
+    // Fail before the parallel part on any bad input.
+    spec.validate(motor, &motor.name, controller, &controller.name)?;
     let mut lanes = Vec::new();
-    for &mode in &spec.modes {
-        for &comp in &spec.compensations {
-            let cfg = controller_config(controller, mode, comp)?;
-            // Fail before the parallel part if options are bad.
-            ClosedLoop::with_config(motor, cfg, &spec.options)?;
-            for &w in &spec.speeds_rad_s {
-                lanes.push((mode, comp, cfg, w));
-            }
+    for (mode, comp) in spec.pairs() {
+        let cfg = controller_config(controller, mode, comp)?;
+        for &w in &spec.speeds_rad_s {
+            lanes.push((mode, comp, cfg, w));
         }
     }
     let pwm = motor.drive.pwm_hz;
@@ -77,7 +146,7 @@ pub fn sweep(
         .enumerate()
         .map(|(i, &(mode, comp, cfg, w))| {
             let opts = SimOptions { seed: lane_seed(spec.options.seed, i as u64), ..spec.options };
-            let mut lp = ClosedLoop::with_config(motor, cfg, &opts).expect("options checked above");
+            let mut lp = ClosedLoop::with_config(motor, cfg, &opts).expect("checked by validate");
             let m = run(&mut lp, &RunSpec { speed_rad_s: w, ..spec.run }, pwm, |_, _| {});
             tick();
             SweepRow {
