@@ -3,7 +3,7 @@
 
 use anyhow::{Context, Result, anyhow, bail};
 use indicatif::{ProgressBar, ProgressStyle};
-use std::io::IsTerminal;
+use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use stepdamp_core::Mode;
 use stepdamp_sim::{Compensation, Profile};
@@ -70,21 +70,75 @@ pub fn progress(len: u64, quiet: bool, what: &str) -> ProgressBar {
     pb
 }
 
+/// Standard output was closed by its reader (`stepdamp … | head -1`): not an error, the
+/// command ends quietly with status 0 (see `main`).
+#[derive(Debug)]
+pub struct StdoutClosed;
+
+impl std::fmt::Display for StdoutClosed {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("standard output was closed")
+    }
+}
+
+impl std::error::Error for StdoutClosed {}
+
+/// Writes to `w` (standard output: use the `out!`/`outln!` macros): a closed pipe becomes
+/// [`StdoutClosed`], any other failure an error naming standard output.
+pub fn write_out(mut w: impl Write, args: std::fmt::Arguments<'_>) -> Result<()> {
+    match w.write_fmt(args).and_then(|()| w.flush()) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Err(StdoutClosed.into()),
+        Err(e) => Err(anyhow::Error::new(e).context("cannot write to standard output")),
+    }
+}
+
+/// Whether an error is (caused by) the reader closing standard output.
+pub fn is_stdout_closed(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| c.is::<StdoutClosed>())
+}
+
 /// Files written side by side and moved into place only when all are complete, so an
 /// error leaves nothing half-written.
 pub struct AtomicFiles {
     staged: Vec<(PathBuf, PathBuf)>,
+    /// Directories to remove (if empty) when dropped without commit, deepest first.
+    created: Vec<PathBuf>,
 }
 
 impl AtomicFiles {
-    /// Creates `dir` (and parents) and checks it is writable.
+    /// Creates `dir` (and parents) and checks it is writable. The directory stays.
     pub fn in_dir(dir: &Path) -> Result<Self> {
+        let mut files = Self::in_dir_removed_on_failure(dir)?;
+        files.created.clear();
+        Ok(files)
+    }
+
+    /// Like [`AtomicFiles::in_dir`], but the directories it had to create are removed
+    /// again (if still empty) when it is dropped without [`AtomicFiles::commit`]: a failed
+    /// command leaves no new directory behind.
+    pub fn in_dir_removed_on_failure(dir: &Path) -> Result<Self> {
+        let mut created = Vec::new();
+        let mut d = Some(dir);
+        while let Some(p) = d.filter(|p| !p.as_os_str().is_empty() && !p.exists()) {
+            created.push(p.to_path_buf());
+            d = p.parent();
+        }
+        let files = AtomicFiles { staged: Vec::new(), created };
         std::fs::create_dir_all(dir)
             .with_context(|| format!("{}: cannot create the output directory", dir.display()))?;
-        let probe = dir.join(".stepdamp-write-test");
+        let probe = dir.join(format!(".stepdamp-write-test-{}", std::process::id()));
         std::fs::write(&probe, b"").with_context(|| format!("{}: output directory is not writable", dir.display()))?;
         let _ = std::fs::remove_file(&probe);
-        Ok(AtomicFiles { staged: Vec::new() })
+        Ok(files)
+    }
+
+    /// For files in `dir`, which must exist (nothing is created).
+    pub fn in_existing_dir(dir: &Path) -> Result<Self> {
+        if !dir.is_dir() {
+            bail!("directory {} does not exist", dir.display());
+        }
+        Ok(AtomicFiles { staged: Vec::new(), created: Vec::new() })
     }
 
     /// A temporary path to write `final_path` to (same directory, same extension).
@@ -98,6 +152,9 @@ impl AtomicFiles {
     /// Moves every staged file into place. If a move fails, the temporary files not yet
     /// moved are removed (by `Drop`), so no `.tmp-*` file is left behind.
     pub fn commit(mut self) -> Result<Vec<PathBuf>> {
+        // From here on the directory is the outputs' (also when a move fails: the files
+        // already moved stay, complete).
+        self.created.clear();
         let mut done = Vec::new();
         while !self.staged.is_empty() {
             let (tmp, fin) = self.staged.remove(0);
@@ -116,20 +173,28 @@ impl Drop for AtomicFiles {
         for (tmp, _) in &self.staged {
             let _ = std::fs::remove_file(tmp);
         }
+        // Deepest first; `remove_dir` leaves a directory that is not empty.
+        for d in &self.created {
+            if std::fs::remove_dir(d).is_err() {
+                break;
+            }
+        }
     }
 }
 
 /// Writes a single file atomically (temporary file in the same directory, then rename).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    if !dir.is_dir() {
-        bail!("{}: directory {} does not exist", path.display(), dir.display());
-    }
-    let mut files = AtomicFiles { staged: Vec::new() };
+    let dir = parent_dir(path);
+    let mut files = AtomicFiles::in_existing_dir(dir).with_context(|| path.display().to_string())?;
     let tmp = files.stage(path);
     std::fs::write(&tmp, bytes).with_context(|| format!("{}: cannot write", path.display()))?;
     files.commit()?;
     Ok(())
+}
+
+/// The directory a file path is in (`.` for a bare name).
+pub fn parent_dir(path: &Path) -> &Path {
+    path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."))
 }
 
 #[cfg(test)]
@@ -145,6 +210,58 @@ mod tests {
         assert!(e.contains("maybe"), "{e}");
         assert_eq!(parse_modes("both").unwrap(), vec![Mode::OpenLoop, Mode::Servo]);
         assert!(parse_modes("closed").is_err());
+    }
+
+    #[test]
+    fn a_closed_pipe_is_a_quiet_stop_and_other_write_errors_are_errors() {
+        struct Fails(std::io::ErrorKind);
+        impl Write for Fails {
+            fn write(&mut self, _: &[u8]) -> std::io::Result<usize> {
+                Err(self.0.into())
+            }
+            fn flush(&mut self) -> std::io::Result<()> {
+                Ok(())
+            }
+        }
+        let e = write_out(Fails(std::io::ErrorKind::BrokenPipe), format_args!("x {}", 1)).unwrap_err();
+        assert!(is_stdout_closed(&e), "{e:#}");
+        assert!(is_stdout_closed(&e.context("while printing")));
+        let e = write_out(Fails(std::io::ErrorKind::StorageFull), format_args!("x")).unwrap_err();
+        assert!(!is_stdout_closed(&e) && format!("{e:#}").contains("standard output"), "{e:#}");
+        let mut buf = Vec::new();
+        write_out(&mut buf, format_args!("a {}\n", 2)).unwrap();
+        assert_eq!(buf, b"a 2\n");
+    }
+
+    #[test]
+    fn an_output_directory_created_for_a_failed_command_is_removed() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("new/deeper");
+        {
+            let mut f = AtomicFiles::in_dir_removed_on_failure(&out).unwrap();
+            let tmp = f.stage(&out.join("a.csv"));
+            std::fs::write(&tmp, b"x").unwrap();
+            // Dropped without commit.
+        }
+        assert!(files(dir.path()).is_empty(), "{:?}", files(dir.path()));
+        // `in_dir` keeps the directory it creates (identification writes into it later).
+        drop(AtomicFiles::in_dir(&out).unwrap());
+        assert!(out.is_dir());
+        std::fs::remove_dir_all(dir.path().join("new")).unwrap();
+        // A committed directory stays, and so does an existing one.
+        let mut f = AtomicFiles::in_dir_removed_on_failure(&out).unwrap();
+        let tmp = f.stage(&out.join("a.csv"));
+        std::fs::write(&tmp, b"x").unwrap();
+        f.commit().unwrap();
+        drop(AtomicFiles::in_dir_removed_on_failure(&out).unwrap());
+        assert_eq!(files(&out), ["a.csv"]);
+    }
+
+    fn files(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> =
+            std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+        v.sort();
+        v
     }
 
     #[test]

@@ -1,5 +1,24 @@
 //! `stepdamp`: sweeps, simulations, identification and motor profiles.
 
+/// `print!` to standard output that returns (with `?`) an error on failure, and
+/// [`common::StdoutClosed`] when the reader has gone (`stepdamp … | head -1`): the command
+/// then ends quietly with status 0.
+macro_rules! out {
+    ($($arg:tt)*) => {
+        $crate::common::write_out(std::io::stdout().lock(), format_args!($($arg)*))?
+    };
+}
+
+/// `println!` with the error handling of [`out!`].
+macro_rules! outln {
+    () => {
+        out!("\n")
+    };
+    ($($arg:tt)*) => {
+        $crate::common::write_out(std::io::stdout().lock(), format_args!("{}\n", format_args!($($arg)*)))?
+    };
+}
+
 mod common;
 mod identify;
 mod motor;
@@ -42,7 +61,22 @@ enum Command {
     Identify(identify::IdentifyArgs),
 }
 
+/// A `println!` to a closed pipe panics with this message; the commands print through
+/// [`out!`], and this catches the rest: a closed standard output ends the command quietly.
+fn quiet_on_closed_stdout() {
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let p = info.payload();
+        let msg = p.downcast_ref::<String>().map(String::as_str).or_else(|| p.downcast_ref::<&str>().copied());
+        if msg.is_some_and(|m| m.starts_with("failed printing to stdout") && m.contains("Broken pipe")) {
+            std::process::exit(0);
+        }
+        default(info);
+    }));
+}
+
 fn main() {
+    quiet_on_closed_stdout();
     let cli = match Cli::try_parse() {
         Ok(c) => c,
         Err(e) => {
@@ -73,6 +107,9 @@ fn main() {
         Command::Identify(a) => identify::run(a, &global),
     };
     if let Err(e) = result {
+        if common::is_stdout_closed(&e) {
+            std::process::exit(0);
+        }
         eprintln!("error: {e:#}");
         std::process::exit(1);
     }

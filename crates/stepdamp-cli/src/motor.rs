@@ -63,20 +63,20 @@ pub fn run(c: MotorCommand, _g: &Global) -> Result<()> {
     match c {
         MotorCommand::Show { motor } => {
             let p = load_motor(&motor)?;
-            print!("{}", p.to_toml_string());
-            println!("\n# derived");
+            out!("{}", p.to_toml_string());
+            outln!("\n# derived");
             for line in derived(&p).lines() {
-                println!("# {line}");
+                outln!("# {line}");
             }
         }
         MotorCommand::Check { motor } => {
             let p = load_motor(&motor)?;
-            println!("{motor}: ok ({})", p.name);
+            outln!("{motor}: ok ({})", p.name);
         }
         MotorCommand::List => {
             for name in PRESETS {
                 let p = Profile::preset(name).expect("presets are valid");
-                println!(
+                outln!(
                     "{name:<18} Km {:.3} N·m/A, I {:.1} A, J {:.1e} kg·m², resonances {}",
                     p.motor.km_nm_per_a,
                     p.drive.holding_current_a,
@@ -92,7 +92,7 @@ pub fn run(c: MotorCommand, _g: &Global) -> Result<()> {
 /// Runs `stepdamp resonance`.
 pub fn resonance(a: ResonanceArgs, _g: &Global) -> Result<()> {
     let p = load_motor(&a.motor)?;
-    println!("{}", p.name);
-    print!("{}", derived(&p));
+    outln!("{}", p.name);
+    out!("{}", derived(&p));
     Ok(())
 }

@@ -1,11 +1,14 @@
 //! `stepdamp simulate`: one constant-speed run, optionally logged per control period.
 
 use crate::Global;
-use crate::common::{load_motor, parse_compensations, parse_modes, write_atomic};
-use anyhow::{Context, Result, bail};
+use crate::common::{AtomicFiles, load_motor, parent_dir, parse_compensations, parse_modes};
+use anyhow::{Context, Result, anyhow, bail};
 use std::path::PathBuf;
-use stepdamp_sim::runlog::{LogRow, write_csv};
-use stepdamp_sim::{ClosedLoop, RunSpec, SimOptions, run as run_spec};
+use stepdamp_sim::runlog::LogRow;
+use stepdamp_sim::{
+    ClosedLoop, ESTIMATED_IS_OPEN_LOOP_ONLY, MAX_SPEED_RAD_S, RunSpec, SimError, SimOptions, check_mode_compensation,
+    check_same_hardware, run as run_spec,
+};
 
 /// Arguments of `stepdamp simulate`.
 #[derive(clap::Args, Debug)]
@@ -19,13 +22,15 @@ pub struct SimulateArgs {
     /// open-loop or servo.
     #[arg(long, default_value = "open-loop")]
     pub mode: String,
-    /// off or patent (alias on).
+    /// off, patent (alias on), or estimated (the rotor angle estimated from the currents
+    /// and voltages; open loop only).
     #[arg(long, default_value = "patent")]
     pub compensation: String,
     /// Commanded speed in rad/s (negative runs backwards).
     #[arg(long, allow_negative_numbers = true)]
     pub speed: f64,
-    /// Simulated time in s.
+    /// Simulated time in s (error measured over the last ≤ 0.5 s, whole electrical periods,
+    /// at least 50 ms after the ramp).
     #[arg(long, default_value_t = 1.5, allow_negative_numbers = true)]
     pub duration: f64,
     /// Standstill time with the holding current on before the ramp, s.
@@ -52,7 +57,11 @@ pub struct SimulateArgs {
 pub fn run(a: SimulateArgs, _g: &Global) -> Result<()> {
     let motor = load_motor(&a.motor)?;
     let controller = match &a.controller_motor {
-        Some(c) => load_motor(c).context("--controller-motor")?,
+        Some(c) => {
+            let p = load_motor(c).context("--controller-motor")?;
+            check_same_hardware(&motor, &a.motor, &p, c)?;
+            p
+        }
         None => motor.clone(),
     };
     let modes = parse_modes(&a.mode)?;
@@ -60,8 +69,10 @@ pub fn run(a: SimulateArgs, _g: &Global) -> Result<()> {
     let ([mode], [comp]) = (modes.as_slice(), comps.as_slice()) else {
         bail!("simulate runs one mode and one compensation (got --mode {} --compensation {})", a.mode, a.compensation);
     };
-    if !a.speed.is_finite() || a.speed == 0.0 || a.speed.abs() > 10_000.0 {
-        bail!("--speed {}: must be a non-zero speed in rad/s, |speed| ≤ 10000", a.speed);
+    check_mode_compensation(*mode, *comp)
+        .map_err(|_| anyhow!("--mode servo --compensation estimated: {ESTIMATED_IS_OPEN_LOOP_ONLY}"))?;
+    if !a.speed.is_finite() || a.speed == 0.0 || a.speed.abs() > MAX_SPEED_RAD_S {
+        bail!("--speed {}: must be a non-zero speed in rad/s, |speed| ≤ {MAX_SPEED_RAD_S}", a.speed);
     }
     if !(a.duration.is_finite() && a.duration > 0.0 && a.duration <= 1000.0) {
         bail!("--duration {}: must be in (0, 1000] s", a.duration);
@@ -70,19 +81,6 @@ pub fn run(a: SimulateArgs, _g: &Global) -> Result<()> {
     {
         bail!("--dwell {} + --ramp {}: must be ≥ 0 and shorter than --duration {}", a.dwell, a.ramp, a.duration);
     }
-    if let Some(path) = &a.log {
-        let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(std::path::Path::new("."));
-        if !dir.is_dir() {
-            bail!("--log {}: directory {} does not exist", path.display(), dir.display());
-        }
-    }
-    let opts = SimOptions {
-        current_noise_a: a.current_noise,
-        seed: a.seed,
-        load_torque_nm: a.load_torque,
-        ..SimOptions::default()
-    };
-    let mut lp = ClosedLoop::new(&motor, &controller, *mode, *comp, &opts)?;
     let spec = RunSpec {
         speed_rad_s: a.speed,
         dwell_s: a.dwell,
@@ -92,17 +90,56 @@ pub fn run(a: SimulateArgs, _g: &Global) -> Result<()> {
     };
     let pwm = motor.drive.pwm_hz;
     let nr = motor.motor.pole_pairs;
-    let mut rows: Vec<LogRow> = Vec::new();
-    let logging = a.log.is_some();
-    if logging {
-        rows.reserve((a.duration * pwm) as usize + 1);
-    }
+    spec.check(pwm, nr).map_err(|e| match e {
+        // Name the flag: the run's duration, speed, dwell and ramp are the options'.
+        SimError::Option { what: what @ ("duration" | "speed" | "dwell" | "ramp"), reason } => {
+            anyhow!("--{what} {reason}")
+        }
+        e => e.into(),
+    })?;
+    let opts = SimOptions {
+        current_noise_a: a.current_noise,
+        seed: a.seed,
+        load_torque_nm: a.load_torque,
+        ..SimOptions::default()
+    };
+    let mut lp = ClosedLoop::new(&motor, &controller, *mode, *comp, &opts)?;
+    // The log is streamed to a temporary file next to its target and moved into place
+    // when complete, so an error leaves nothing half-written.
+    let mut log = match &a.log {
+        Some(path) => {
+            let mut files =
+                AtomicFiles::in_existing_dir(parent_dir(path)).with_context(|| format!("--log {}", path.display()))?;
+            let tmp = files.stage(path);
+            let file = std::fs::File::create(&tmp).with_context(|| format!("{}: cannot write", path.display()))?;
+            Some((files, csv::Writer::from_writer(std::io::BufWriter::new(file)), path))
+        }
+        None => None,
+    };
+    let mut rows = 0usize;
+    let mut write_error: Option<csv::Error> = None;
     let m = run_spec(&mut lp, &spec, pwm, |k, rec| {
-        if logging {
-            rows.push(LogRow::from_record(k, pwm, nr, rec));
+        if let (Some((_, w, _)), None) = (&mut log, &write_error) {
+            match w.serialize(LogRow::from_record(k, pwm, nr, rec)) {
+                Ok(()) => rows += 1,
+                Err(e) => write_error = Some(e),
+            }
         }
     });
-    println!(
+    let written = match log {
+        Some((files, mut w, path)) => {
+            let flushed = match write_error {
+                Some(e) => Err(e.into()),
+                None => w.flush(),
+            };
+            flushed.with_context(|| format!("{}: cannot write", path.display()))?;
+            drop(w);
+            files.commit()?;
+            Some(path)
+        }
+        None => None,
+    };
+    outln!(
         "{} {} compensation {} at {} rad/s: velocity error rms {:.4} rad/s, pp {:.4} rad/s, max load angle {:.3} electrical rad{}",
         motor.name,
         stepdamp_sim::mode_name(*mode),
@@ -113,11 +150,8 @@ pub fn run(a: SimulateArgs, _g: &Global) -> Result<()> {
         m.max_load_angle_e_rad,
         if m.lost_sync { ", LOST SYNC" } else { "" }
     );
-    if let Some(path) = &a.log {
-        let mut buf = Vec::with_capacity(rows.len() * 160);
-        write_csv(&mut buf, &rows)?;
-        write_atomic(path, &buf)?;
-        println!("wrote {} ({} rows)", path.display(), rows.len());
+    if let Some(path) = written {
+        outln!("wrote {} ({rows} rows)", path.display());
     }
     Ok(())
 }
