@@ -209,14 +209,17 @@ impl LoadAngleObserver {
         if direction == 0.0 {
             // Standstill: no back-EMF, so what remains along the current is resistance
             // error; trimmed once the current has settled on its command.
-            // A rotor still ringing after a stop makes back-EMF too, mostly across the
+            // A rotor still settling after a stop makes back-EMF too, mostly across the
             // current (δ is small); a resistance error makes it only along the current. So
-            // trim only while the fast back-EMF across the current is below the floor.
+            // trim only while the fast back-EMF across the current is within the floor plus
+            // three standard deviations of the fast filter's noise (sensor noise must not
+            // stop the trim).
             let cmd = st.command_history[0];
             let settled = (cmd.d - id).abs() + (cmd.q - iq).abs() < 0.02 * (cmd.d.abs() + cmd.q.abs());
             let i2 = id * id + iq * iq;
-            let across = (st.e_dq.q * id - st.e_dq.d * iq) * libm::sqrtf(1.0 / i2.max(1e-12));
-            if settled && i2 > 1e-4 && across.abs() < self.e_floor_v {
+            let across = st.e_dq.q * id - st.e_dq.d * iq;
+            let quiet = self.e_floor_v * self.e_floor_v + 9.0 * self.fast_noise_gain * st.residual_power_v2;
+            if settled && i2 > 1e-4 && across * across < quiet * i2 {
                 let de = (ed * id + eq * iq) / i2;
                 st.r_hat_ohm = (st.r_hat_ohm + self.r_trim_gain * de).max(0.25 * self.r_ohm).min(4.0 * self.r_ohm);
             }
@@ -367,7 +370,9 @@ mod tests {
         // must not be read as resistance error.
         let obs = observer(R, KM);
         let mut st = ObserverState::default();
-        run(&obs, &mut st, 0.0, 0.0, R, 1_000);
+        // 0.5 s at standstill first: the power-on step of the current must have left the
+        // noise tracker (5 Hz).
+        run(&obs, &mut st, 0.0, 0.0, R, 10_000);
         let i = Dq { d: 1.9, q: 0.0 };
         let mut worst = 0.0f32;
         for n in 0..4_000 {
