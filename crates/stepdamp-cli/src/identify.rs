@@ -54,8 +54,9 @@ struct FitArgs {
     /// i_a_a and i_b_a); repeat for several runs (two speeds, both directions).
     #[arg(long = "log", value_name = "CSV")]
     logs: Vec<PathBuf>,
-    /// Base motor profile (preset or TOML): Km, Nr, J, encoder and servo settings are taken
-    /// from it; its detent list and friction are replaced by what is identified.
+    /// Base motor profile (preset or TOML): Km, Nr, encoder and servo settings are taken
+    /// from it; its detent list, friction and J are replaced by what is identified (J is
+    /// fitted; a warning says when it differs from the base's by more than 20 %).
     #[arg(long, value_name = "PRESET|FILE")]
     motor: Option<String>,
     /// Where to write the identified profile (TOML).
@@ -71,7 +72,8 @@ struct FitArgs {
     #[arg(long, default_value = "measured")]
     effort: String,
     /// The logs were recorded with the --motor profile's detent and Fs fed forward: print
-    /// the remaining ripple (the patent's refinement criterion).
+    /// the remaining ripple (the patent's refinement criterion). J is then held at the
+    /// --motor profile's (fitted otherwise).
     #[arg(long)]
     ff_on: bool,
     /// Servo position-loop bandwidth of the logged runs in Hz (default: the profile's
@@ -103,8 +105,9 @@ struct RunArgs {
     /// Motor profile (preset or TOML) to simulate.
     #[arg(long, value_name = "PRESET|FILE")]
     motor: String,
-    /// Output directory for the logs (one CSV per run), plan.txt and, with --refine,
-    /// identified.toml.
+    /// Output directory for the logs (one CSV per run), plan.txt, base.toml (the profile the
+    /// runs were recorded with, [servo] included: pass it to `identify --motor`) and, with
+    /// --refine, identified.toml and refine-summary.csv.
     #[arg(long, value_name = "DIR")]
     out: PathBuf,
     /// Also identify from the logs, refine with the feed-forward on (patent criterion) and
@@ -199,8 +202,8 @@ fn run_plan_cmd(a: PlanArgs) -> Result<()> {
     let motor = load_motor(&a.motor)?;
     let orders = parse_orders(&a.orders)?;
     let p = plan(&motor, &plan_options(&orders, a.periods)?)?;
-    print!("{}", p.describe());
-    println!(
+    out!("{}", p.describe());
+    outln!(
         "total {:.1} s of logging; record t_s, theta_fb_rad, i_q_a (or i_a_a, i_b_a) every control period",
         p.total_s()
     );
@@ -242,7 +245,7 @@ fn run_fit_cmd(a: FitArgs, _global: &Global) -> Result<()> {
     let t_read = t0.elapsed().as_secs_f64();
     for l in &logs {
         if !l.ignored_columns.is_empty() {
-            println!("note: {}: ignored unknown columns: {}", l.source, l.ignored_columns.join(", "));
+            outln!("note: {}: ignored unknown columns: {}", l.source, l.ignored_columns.join(", "));
         }
     }
     let mut fo = FitOptions::for_profile(&base, &orders);
@@ -251,7 +254,11 @@ fn run_fit_cmd(a: FitArgs, _global: &Global) -> Result<()> {
         fo.servo_bandwidth_hz = Some(bw);
     }
     if a.ff_on {
+        // Feed-forward-on logs: raw effort, J held at the base profile's (the one whose
+        // feed-forward ran, normally identified from feed-forward-off logs).
         fo.correct_quantisation = false;
+        fo.smooth_effort = false;
+        fo.fit_inertia = false;
     }
     let f = fit(&logs, &fo)?;
     let t_fit = t0.elapsed().as_secs_f64() - t_read;
@@ -260,25 +267,25 @@ fn run_fit_cmd(a: FitArgs, _global: &Global) -> Result<()> {
     let out_s = out.display().to_string();
     let profile = model.apply_to(&base, Some(&name), &out_s).map_err(|e| anyhow!("{e}"))?;
     let rows: usize = logs.iter().map(RunLog::len).sum();
-    print!("{}", fit_table(&f, &base.name));
+    out!("{}", fit_table(&f, &base.name));
     if a.ff_on {
         let before = Model::of_profile(&base);
-        println!(
+        outln!(
             "feed-forward on: remaining ripple {:.3} mN·m RMS (the feed-forward of {} carried {:.3} mN·m RMS)",
             1e3 * remaining_ripple_nm(&before, &f),
             base.name,
             1e3 * before.ripple_rms_nm()
         );
     }
-    println!("{} logs, {rows} rows: read in {t_read:.3} s, fitted in {t_fit:.3} s", logs.len());
+    outln!("{} logs, {rows} rows: read in {t_read:.3} s, fitted in {t_fit:.3} s", logs.len());
     if let Some(dir) = &a.report {
         let written = write_report(dir, &f, None, &profile.name)?;
         for w in written {
-            println!("wrote {}", w.display());
+            outln!("wrote {}", w.display());
         }
     }
     write_atomic(out, profile.to_toml_string().as_bytes())?;
-    println!("wrote {out_s}");
+    outln!("wrote {out_s}");
     Ok(())
 }
 
@@ -328,6 +335,15 @@ fn fit_table(f: &Fit, base: &str) -> String {
             let _ = writeln!(s, "  D    {:.4e} N·m·s/rad (not separable: kept)", f.viscous_used);
         }
     }
+    match f.inertia_kg_m2 {
+        Some(j) => {
+            let _ =
+                writeln!(s, "  J    {:.4e} ± {:.1e} kg·m² (written to the profile's inertia_kg_m2)", j.value, j.ci95);
+        }
+        None => {
+            let _ = writeln!(s, "  J    {:.4e} kg·m² (held: the base profile's)", f.inertia_used);
+        }
+    }
     if let Some(c) = f.offset_nm {
         let _ = writeln!(
             s,
@@ -372,8 +388,6 @@ fn run_run_cmd(a: RunArgs, global: &Global) -> Result<()> {
         bail!("--iterations {}: must be in 1..=20", a.iterations);
     }
     let po = PlanOptions { current_noise_a: a.current_noise, seed: a.seed, ..plan_options(&orders, a.periods)? };
-    // Creates the directory and checks it is writable.
-    AtomicFiles::in_dir(&a.out)?;
     let p = plan(&motor, &po)?;
     // The logs are held in memory (and written as CSV): bound their size.
     let rows = p.total_s() * p.profile.drive.pwm_hz;
@@ -386,31 +400,61 @@ fn run_run_cmd(a: RunArgs, global: &Global) -> Result<()> {
             p.profile.drive.pwm_hz
         );
     }
-    print!("{}", p.describe());
+    if a.out.exists() && !a.out.is_dir() {
+        bail!("--out {}: exists and is not a directory", a.out.display());
+    }
+    // Everything is checked: create the directory now, and remove it again if this run
+    // created it and then fails, so an error leaves nothing behind.
+    let created = !a.out.exists();
+    AtomicFiles::in_dir(&a.out)?;
+    let result = simulate_and_identify(&a, global, &motor, &orders, &po, &p);
+    // A reader that closed standard output (`| head`) is not a failure of the run: keep
+    // what was written.
+    if created && result.as_ref().is_err_and(|e| !crate::common::is_stdout_closed(e)) {
+        let _ = std::fs::remove_dir_all(&a.out);
+    }
+    result
+}
+
+/// The part of `identify run` after the checks: simulate, write the logs, the plan and the
+/// planned profile, and with `--refine` identify, refine and summarise.
+fn simulate_and_identify(
+    a: &RunArgs,
+    global: &Global,
+    motor: &Profile,
+    orders: &[u16],
+    po: &PlanOptions,
+    p: &Plan,
+) -> Result<()> {
+    out!("{}", p.describe());
     let pb = progress(p.runs.len() as u64, global.quiet, "simulating");
     let t0 = Instant::now();
-    let done = run_plan(&motor, &a.out, &po, &|| pb.inc(1))?;
+    let done = run_plan(motor, motor, &a.out, po, &|| pb.inc(1))?;
     pb.finish_and_clear();
-    println!("simulated {:.1} s of runs in {:.2} s", p.total_s(), t0.elapsed().as_secs_f64());
+    outln!("simulated {:.1} s of runs in {:.2} s", p.total_s(), t0.elapsed().as_secs_f64());
     write_atomic(&a.out.join("plan.txt"), p.describe().as_bytes())?;
+    // The profile the runs were recorded with (its [servo] section is the plan's): the
+    // base profile for `identify`, so the fit knows the servo bandwidth of the logs.
+    let base_toml = a.out.join("base.toml");
+    write_atomic(&base_toml, p.profile.to_toml_string().as_bytes())?;
     for f in &done.files {
-        println!("wrote {}", f.display());
+        outln!("wrote {}", f.display());
     }
+    outln!("wrote {} (the planned profile: {}'s, with the [servo] settings of the runs)", base_toml.display(), a.motor);
     if !a.refine {
         let logs: Vec<String> = done.files.iter().map(|f| format!("--log {}", f.display())).collect();
-        println!(
-            "identify with: stepdamp identify {} --motor {} --servo-bandwidth {:.1} --out {}",
+        outln!(
+            "identify with: stepdamp identify {} --motor {} --out {}",
             logs.join(" "),
-            a.motor,
-            p.servo_bandwidth_hz,
+            base_toml.display(),
             a.out.join("identified.toml").display()
         );
         return Ok(());
     }
     let logs = read_logs(&done.files, motor.motor.pole_pairs)?;
-    let fo = FitOptions::for_profile(&p.profile, &orders);
+    let fo = FitOptions::for_profile(&p.profile, orders);
     let f0 = fit(&logs, &fo)?;
-    print!("{}", fit_table(&f0, &motor.name));
+    out!("{}", fit_table(&f0, &motor.name));
     let start = Model::from_fit(&f0);
     let ro = RefineOptions {
         max_iterations: a.iterations,
@@ -419,22 +463,86 @@ fn run_run_cmd(a: RunArgs, global: &Global) -> Result<()> {
         ..RefineOptions::default()
     };
     let pb = progress((p.runs.len() * (a.iterations + 1)) as u64, global.quiet, "refining");
-    let r = refine(&motor, &p, &start, Some(&f0), &fo, &ro, &|| pb.inc(1))?;
+    let r = refine(motor, p, &start, Some(&f0), &fo, &ro, &|| pb.inc(1))?;
     pb.finish_and_clear();
-    print!("{}", refine_table(&r));
+    out!("{}", refine_table(&r));
     let out = a.out.join("identified.toml");
     let profile = r
         .model
-        .apply_to(&motor, Some(&default_name(&motor, "identified")), &out.display().to_string())
+        .apply_to(motor, Some(&default_name(motor, "identified")), &out.display().to_string())
         .map_err(|e| anyhow!("{e}"))?;
     if a.report {
-        for w in write_report(&a.out, &f0, Some((&r, &p)), &profile.name)? {
-            println!("wrote {}", w.display());
+        for w in write_report(&a.out, &f0, Some((&r, p)), &profile.name)? {
+            outln!("wrote {}", w.display());
         }
     }
+    let summary = a.out.join(SUMMARY_FILE);
+    write_atomic(&summary, refine_summary_csv(motor, &f0, &r).as_bytes())?;
+    outln!(
+        "wrote {} (simulated motor, feed-forward-off fit and refined values; ripple before/after)",
+        summary.display()
+    );
     write_atomic(&out, profile.to_toml_string().as_bytes())?;
-    println!("wrote {}", out.display());
+    outln!("wrote {}", out.display());
     Ok(())
+}
+
+/// File `identify run --refine` writes its summary to, in the output directory.
+const SUMMARY_FILE: &str = "refine-summary.csv";
+
+/// The summary of `identify run --refine` as CSV, for scripts: one row per quantity with
+/// the simulated motor's value (the truth), the feed-forward-off fit's and the refined one.
+/// Columns `quantity,order,unit,motor,identified,refined`; quantities `amplitude` and
+/// `phase` (one row per order), `coulomb_friction`, `viscous_friction`, `inertia`, and
+/// `periodic_ripple_rms` (the loop effort's ripple over orders 1–16: `identified` = before,
+/// feed-forward off; `refined` = after, the refined estimate fed forward) and
+/// `ripple_reduction` (before / after, in `refined`). Empty cells: not applicable.
+fn refine_summary_csv(motor: &Profile, f0: &Fit, r: &Refinement) -> String {
+    let mut s = String::from("quantity,order,unit,motor,identified,refined\n");
+    let start = Model::from_fit(f0);
+    let find = |m: &Model, k: u16| m.detent.iter().find(|h| h.order == k).copied();
+    let truth = Model::of_profile(motor);
+    for h in &r.model.detent {
+        let (t, i) = (find(&truth, h.order), find(&start, h.order));
+        let cell = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.6e}"));
+        let _ = writeln!(
+            s,
+            "amplitude,{},N·m,{},{},{:.6e}",
+            h.order,
+            cell(t.map(|t| t.amplitude_nm).or(Some(0.0))),
+            cell(i.map(|i| i.amplitude_nm)),
+            h.amplitude_nm
+        );
+        let _ = writeln!(
+            s,
+            "phase,{},rad,{},{},{:.6}",
+            h.order,
+            t.map_or(String::new(), |t| format!("{:.6}", t.phase_rad)),
+            i.map_or(String::new(), |i| format!("{:.6}", i.phase_rad)),
+            h.phase_rad
+        );
+    }
+    let _ = writeln!(
+        s,
+        "coulomb_friction,,N·m,{:.6e},{:.6e},{:.6e}",
+        motor.motor.coulomb_friction_nm, start.coulomb_friction_nm, r.model.coulomb_friction_nm
+    );
+    let _ = writeln!(
+        s,
+        "viscous_friction,,N·m·s/rad,{:.6e},{:.6e},{:.6e}",
+        motor.motor.viscous_nm_s_per_rad, start.viscous_nm_s_per_rad, r.model.viscous_nm_s_per_rad
+    );
+    let _ = writeln!(
+        s,
+        "inertia,,kg·m²,{:.6e},{:.6e},{:.6e}",
+        motor.motor.inertia_kg_m2,
+        f0.inertia_used,
+        r.model.inertia_kg_m2.unwrap_or(f0.inertia_used)
+    );
+    let (before, after) = r.ripple_before_after_nm();
+    let _ = writeln!(s, "periodic_ripple_rms,,N·m,,{before:.6e},{after:.6e}");
+    let _ = writeln!(s, "ripple_reduction,,ratio,,,{:.1}", before / after.max(1e-15));
+    s
 }
 
 fn refine_table(r: &Refinement) -> String {
@@ -509,12 +617,12 @@ fn run_static_cmd(a: StaticArgs) -> Result<()> {
             missing.join(", ")
         );
     }
-    println!("{src}: {} points, {} electrical periods", pts.len(), c.electrical_periods);
-    println!("  order   amplitude mN·m   phase rad");
+    outln!("{src}: {} points, {} electrical periods", pts.len(), c.electrical_periods);
+    outln!("  order   amplitude mN·m   phase rad");
     for h in &picked {
-        println!("  {:>5}   {:10.4}       {:+8.4}", h.order, 1e3 * h.amplitude_nm, h.phase_rad);
+        outln!("  {:>5}   {:10.4}       {:+8.4}", h.order, 1e3 * h.amplitude_nm, h.phase_rad);
     }
-    println!("  mean torque {:.4} mN·m, rest (other orders) {:.4} mN·m RMS", 1e3 * c.mean_nm, 1e3 * c.rest_rms_nm);
+    outln!("  mean torque {:.4} mN·m, rest (other orders) {:.4} mN·m RMS", 1e3 * c.mean_nm, 1e3 * c.rest_rms_nm);
     let mut model = Model::of_profile(&base);
     model.detent = picked
         .iter()
@@ -528,7 +636,7 @@ fn run_static_cmd(a: StaticArgs) -> Result<()> {
     let out_s = a.out.display().to_string();
     let profile = model.apply_to(&base, Some(&name), &out_s).map_err(|e| anyhow!("{e}"))?;
     write_atomic(&a.out, profile.to_toml_string().as_bytes())?;
-    println!("wrote {out_s} (friction kept from the base profile: a static table does not measure it)");
+    outln!("wrote {out_s} (friction kept from the base profile: a static table does not measure it)");
     Ok(())
 }
 
@@ -748,9 +856,26 @@ mod tests {
             .collect();
         logs.sort();
         assert_eq!(logs.len(), 4);
+        // The planned profile, with the servo settings the runs were recorded with.
+        let base = dir.path().join("base.toml");
+        let planned = Profile::from_file(&base).unwrap();
+        let want = plan(&Profile::preset("patent-motor").unwrap(), &plan_options(&[1, 2, 4], 6.0).unwrap()).unwrap();
+        assert_eq!(planned.servo, want.profile.servo);
+        assert!(planned.servo.bandwidth_hz > 60.0, "{:?}", planned.servo);
+        // Identified with it (no --servo-bandwidth): the fit knows the logs' servo, so no
+        // "too fast for the servo" warning.
+        let fo = FitOptions::for_profile(&planned, &[1, 2, 4]);
+        let parsed = read_logs(&logs.iter().map(PathBuf::from).collect::<Vec<_>>(), 50).unwrap();
+        let f = fit(&parsed, &fo).unwrap();
+        assert!(
+            !f.warnings.iter().any(|w| matches!(w, stepdamp_identify::fit::Warning::TooFast { .. })),
+            "{:?}",
+            f.warnings
+        );
         let out = dir.path().join("id.toml");
         let rep = dir.path().join("report");
-        let mut v = vec!["--motor", "patent-motor", "--out", out.to_str().unwrap(), "--report", rep.to_str().unwrap()];
+        let b = base.to_str().unwrap();
+        let mut v = vec!["--motor", b, "--out", out.to_str().unwrap(), "--report", rep.to_str().unwrap()];
         for l in &logs {
             v.push("--log");
             v.push(l);
@@ -760,9 +885,68 @@ mod tests {
         assert_eq!(p.motor.detent.len(), 3);
         let a4 = p.motor.detent.iter().find(|h| h.order == 4).unwrap().amplitude_nm;
         assert!((a4 - 0.02).abs() < 0.001, "{a4}");
+        // J identified and written (the preset's is 4e-5).
+        assert!((p.motor.inertia_kg_m2 / 4e-5 - 1.0).abs() < 0.1, "{}", p.motor.inertia_kg_m2);
         for f in ["spectrum.svg", "spectrum.png", "residual.svg", "residual.png"] {
             assert!(std::fs::metadata(rep.join(f)).unwrap().len() > 1000, "{f}");
         }
+    }
+
+    #[test]
+    fn identify_run_refused_by_its_checks_creates_no_directory() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("new").join("runs");
+        let o = out.to_str().unwrap();
+        // Too many rows for the row limit.
+        let e = run(args(&["run", "--motor", "patent-motor", "--out", o, "--periods", "90000"]), &Q)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("rows"), "{e}");
+        // A plan the planner refuses (a stiffness margin is fine; zero noise is fine; bad
+        // periods are caught by the option check, a bad motor by the loader).
+        let e =
+            run(args(&["run", "--motor", "patent-motor", "--out", o, "--periods", "1"]), &Q).unwrap_err().to_string();
+        assert!(e.contains("--periods"), "{e}");
+        let e = run(args(&["run", "--motor", "no-such-motor", "--out", o]), &Q).unwrap_err().to_string();
+        assert!(e.contains("no-such-motor"), "{e}");
+        assert!(!dir.path().join("new").exists(), "nothing is created on an error");
+        // A file in the way.
+        let file = dir.path().join("file");
+        std::fs::write(&file, b"x").unwrap();
+        let e = run(args(&["run", "--motor", "patent-motor", "--out", file.to_str().unwrap()]), &Q)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("not a directory"), "{e}");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn identify_run_with_refine_writes_a_summary_a_script_can_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path().to_str().unwrap();
+        let a = ["run", "--motor", "patent-motor", "--out", d, "--periods", "6", "--refine", "--iterations", "1"];
+        run(args(&a), &Q).unwrap();
+        let text = std::fs::read_to_string(dir.path().join(SUMMARY_FILE)).unwrap();
+        let rows: Vec<Vec<&str>> = text.lines().map(|l| l.split(',').collect()).collect();
+        assert_eq!(rows[0], ["quantity", "order", "unit", "motor", "identified", "refined"]);
+        assert!(rows.iter().all(|r| r.len() == 6), "{text}");
+        let get = |q: &str, k: &str| rows.iter().find(|r| r[0] == q && r[1] == k).unwrap_or_else(|| panic!("{q} {k}"));
+        let a4 = get("amplitude", "4");
+        assert_eq!(a4[3].parse::<f64>().unwrap(), 0.02);
+        assert!((a4[5].parse::<f64>().unwrap() - 0.02).abs() < 0.001, "{text}");
+        for q in ["phase", "amplitude"] {
+            for k in ["1", "2"] {
+                get(q, k);
+            }
+        }
+        let fs: f64 = get("coulomb_friction", "")[5].parse().unwrap();
+        assert!((fs / 0.01 - 1.0).abs() < 0.1, "{text}");
+        let ripple = get("periodic_ripple_rms", "");
+        let (before, after): (f64, f64) = (ripple[4].parse().unwrap(), ripple[5].parse().unwrap());
+        assert!(before > 10.0 * after, "{text}");
+        let ratio: f64 = get("ripple_reduction", "")[5].parse().unwrap();
+        assert!((ratio - before / after).abs() < 0.1 * ratio, "{text}");
+        assert!(dir.path().join("identified.toml").exists());
     }
 
     #[test]

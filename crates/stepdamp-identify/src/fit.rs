@@ -29,9 +29,39 @@
 //!   percent, and the share of the detent torque that goes into accelerating the rotor is
 //!   `≈ (k·Nr·|ω| / ω_servo)²` (10 % at a third of the loop bandwidth). Dropping the term
 //!   biased harmonic amplitudes by 2–12 % in simulation; keeping it, by ≈ 1 %. `dω/dt`
-//!   comes from `θ_fb` smoothed with a zero-phase low-pass ([`crate::kinematics`]); `J`
-//!   from the profile (a relative error `x` in `J` moves the harmonics by about
-//!   `x ·` [`RunSummary::inertial_share`]).
+//!   comes from `θ_fb` smoothed with a zero-phase low-pass ([`crate::kinematics`]); `J` is
+//!   identified (below), or held at [`FitOptions::inertia_kg_m2`] (a relative error `x` in
+//!   `J` then moves the harmonics by about `x ·` [`RunSummary::inertial_share`]).
+//!
+//! # Inertia
+//!
+//! A user's profile carries a guessed `J` (the preset's, or the bare rotor's without the
+//! load). Held at the preset's while the true one was ×0.5–×3 of it, the fit missed
+//! harmonic amplitudes by up to 35 % and `Fs` by up to 18 % (50 random motors). So `J` is a
+//! regressor ([`FitOptions::fit_inertia`], on by default): the model is linear in it.
+//!
+//! * **Instrument.** Regressing on the smoothed `dω/dt` itself gave `J` 0.14–2.9× the
+//!   truth: the encoder's quantisation noise is in the regressor (errors in variables) and,
+//!   through the servo, in the torque too (closed-loop correlation). The column is therefore
+//!   each log's own *periodic part* of `dω/dt` (its least-squares fit on `sin, cos(k·θe)`
+//!   of the fitted orders and a constant) — an instrumental variable: it carries the
+//!   acceleration the detent causes, not the jitter. It is separable from the harmonics
+//!   because the servo turns the detent into acceleration with a different gain and phase
+//!   at each speed and in each direction (the phase flips with the direction), which is
+//!   why the plan's two speeds in both directions matter. Variance inflation of the `J`
+//!   column is ≈ 6 with the plan's runs.
+//! * **Smoothing.** The effort is low-passed with the filter that gave `dω/dt`
+//!   ([`FitOptions::smooth_effort`]), so `Km·i_q` and `J·dω/dt` see the same band, and the
+//!   harmonic regressors are scaled by that filter's gain at their frequency (≥ 0.998).
+//!   Feed-forward-on fits keep the raw effort (the feed-forward is a staircase in `θ_fb`)
+//!   and hold `J` (the rotor then hardly accelerates): [`crate::refine`].
+//! * **Measured** (50 random motors, `J` ×0.5–×3 of the base profile's, no detent in it):
+//!   `J` within +0.6 … +4.8 % (a small positive bias, ≈ +2 % typical; the 95 % intervals,
+//!   1–5 %, do not always cover it), harmonics within 0.83 %, phases 0.007 rad, `Fs` 2.3 %.
+//!   A `J` that differs from the base profile's by more than
+//!   [`FitOptions::max_inertia_disagreement`] is warned about, and one poorly determined
+//!   (interval wider than that fraction) too. The identified `J` goes into the output
+//!   profile's `inertia_kg_m2` ([`crate::model::Model::apply_to`]).
 //! * **Friction columns use the run's mean speed** `ω̄` (the slope of the straight line
 //!   through `θ_fb(t)` over the steady window): `Fs·sgn(ω̄)`, `D·ω̄`. The viscous torque
 //!   of the speed ripple, `D·(ω − ω̄)`, is subtracted from the data with `D` from a first
@@ -73,11 +103,10 @@
 //! electrical period), propagated to amplitude and phase by the delta method:
 //! `σ_A² = gᵀΣg` with `g = (a, b)/A`, `σ_φ² = hᵀΣh` with `h = (−b, a)/A²`. They cover
 //! measurement noise and loop jitter, **not bias**. Measured bias on the simulator with the
-//! plan of [`crate::plan`] (4000 counts, `Nr` = 50, current noise 0.01 A): order-4
-//! amplitudes ≈ 1–1.5 % low, orders 1–2 within 0.5 %, phases within 0.005 rad, `Fs` within
-//! 1.5 % (worst over 50 random motors); the bias falls roughly as `1/cpr²` (0.3 % at 8000
-//! counts) and refinement ([`crate::refine`]) removes it. A wrong `J` or `Km` scales the
-//! result; an order not fitted stays in the residual and does not leak into the others when
+//! plan of [`crate::plan`] (4000 counts, `Nr` = 50, current noise 0.01 A), `J` identified:
+//! amplitudes within 0.83 %, phases within 0.007 rad, `Fs` within 2.3 % (worst over 50
+//! random motors, see *Inertia*); refinement ([`crate::refine`]) leaves ≈ 0.1 %. A wrong
+//! `Km` scales the result; an order not fitted stays in the residual and does not leak into the others when
 //! the logs cover whole electrical periods. Runs too slow for the encoder (count rate below
 //! the servo bandwidth in rad/s) underestimate `Fs` by 10–40 %: see the warnings.
 //!
@@ -122,8 +151,16 @@ pub struct FitOptions {
     pub pole_pairs: u16,
     /// Torque constant `Km` in N·m/A.
     pub km_nm_per_a: f64,
-    /// Rotor + load inertia `J` in kg·m² for the `J·dω/dt` term (0 = ignore inertia).
+    /// Rotor + load inertia `J` in kg·m² for the `J·dω/dt` term: the value held when
+    /// [`FitOptions::fit_inertia`] is off (0 = ignore inertia), and the reference the fitted
+    /// `J` is compared with when it is on.
     pub inertia_kg_m2: f64,
+    /// Fit `J` as one more regressor on `dω/dt` (see the module documentation, *Inertia*)
+    /// instead of holding [`FitOptions::inertia_kg_m2`].
+    pub fit_inertia: bool,
+    /// With [`FitOptions::fit_inertia`]: warn when the fitted `J` differs from
+    /// [`FitOptions::inertia_kg_m2`] by more than this fraction.
+    pub max_inertia_disagreement: f64,
     /// Encoder counts per revolution (for the quantisation correction and the smoothing
     /// corner); `None` when unknown.
     pub counts_per_rev: Option<u32>,
@@ -142,6 +179,11 @@ pub struct FitOptions {
     /// true angle); off for feed-forward-on logs, whose fixed point is the feed-forward in
     /// the controller's own (quantised) angle.
     pub correct_quantisation: bool,
+    /// Low-pass the effort with the filter that gives `dω/dt` (see the module
+    /// documentation, *Inertia*). Right for logs without feed-forward; off for
+    /// feed-forward-on logs, whose effort carries the feed-forward as a staircase in the
+    /// encoder angle that must stay aligned with the regressors.
+    pub smooth_effort: bool,
     /// Warn when more than this fraction of the encoder steps go against the direction of
     /// travel (the servo's quantisation jitter reverses the rotor, and friction is then
     /// underestimated).
@@ -161,6 +203,8 @@ impl FitOptions {
             pole_pairs: p.motor.pole_pairs,
             km_nm_per_a: p.motor.km_nm_per_a,
             inertia_kg_m2: p.motor.inertia_kg_m2,
+            fit_inertia: true,
+            max_inertia_disagreement: 0.2,
             counts_per_rev: Some(p.encoder.counts_per_rev),
             servo_bandwidth_hz: Some(p.servo.bandwidth_hz),
             viscous_fallback_nm_s_per_rad: p.motor.viscous_nm_s_per_rad,
@@ -168,6 +212,7 @@ impl FitOptions {
             min_speed_fraction: 0.1,
             recommended_periods: 10.0,
             correct_quantisation: true,
+            smooth_effort: true,
             max_back_step_fraction: 0.02,
             max_inertial_share: 0.75,
             max_inflation: 50.0,
@@ -330,6 +375,24 @@ pub enum Warning {
         /// Its variance inflation factor.
         inflation: f64,
     },
+    /// The fitted `J` differs from the base profile's by more than
+    /// [`FitOptions::max_inertia_disagreement`].
+    InertiaDisagrees {
+        /// Fitted `J`, kg·m².
+        value: f64,
+        /// Its 95 % half-width, kg·m².
+        ci95: f64,
+        /// The base profile's `J`, kg·m².
+        base: f64,
+    },
+    /// The fitted `J` is not positive or its interval is wide: the logs hold too little
+    /// acceleration that is not periodic with the detent.
+    InertiaUncertain {
+        /// Fitted `J`, kg·m².
+        value: f64,
+        /// Its 95 % half-width, kg·m².
+        ci95: f64,
+    },
     /// A harmonic smaller than its own uncertainty.
     NotSignificant {
         /// Order.
@@ -412,6 +475,15 @@ impl std::fmt::Display for Warning {
                 f,
                 "{term} is hard to separate from the other terms (variance inflation {inflation:.0}); its interval is wide"
             ),
+            Warning::InertiaDisagrees { value, ci95, base } => write!(
+                f,
+                "J identified {value:.3e} ± {ci95:.1e} kg·m² differs from the base profile's {base:.3e} kg·m² by {:+.0} % (a load coupled to the rotor, or a wrong profile): the identified J is written to the profile; plan the servo again with it",
+                100.0 * (value / base - 1.0)
+            ),
+            Warning::InertiaUncertain { value, ci95 } => write!(
+                f,
+                "J identified {value:.3e} ± {ci95:.1e} kg·m² is poorly determined (the rotor hardly accelerated apart from the detent ripple): the harmonics lean on it; log runs at two speeds in both directions"
+            ),
             Warning::NotSignificant { order } => {
                 write!(f, "harmonic {order} is smaller than its own 95 % interval: not detected")
             }
@@ -432,6 +504,10 @@ pub struct Fit {
     pub viscous_used: f64,
     /// Constant torque `c` in N·m (both directions logged only).
     pub offset_nm: Option<Estimate>,
+    /// Rotor + load inertia `J` in kg·m² when fitted ([`FitOptions::fit_inertia`]).
+    pub inertia_kg_m2: Option<Estimate>,
+    /// `J` used in the model (fitted, or [`FitOptions::inertia_kg_m2`] held), kg·m².
+    pub inertia_used: f64,
     /// RMS of the fit residual in N·m.
     pub residual_rms_nm: f64,
     /// RMS of the fitted detent ripple `Σ A sin(…)` over the samples, N·m.
@@ -704,19 +780,21 @@ fn fit_prepared(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Result<
     let (fit_d, both) = (terms.fit_d, terms.fit_c);
     warnings.extend(terms.warning);
 
-    // Columns: a_k, b_k per order; Fs; [D]; [c].
+    // Columns: a_k, b_k per order; Fs; [D]; [c]; [J].
     let nh = o.orders.len();
     let col_fs = 2 * nh;
     let col_d = fit_d.then_some(col_fs + 1);
     let col_c = both.then_some(col_fs + 1 + usize::from(fit_d));
-    let p = col_fs + 1 + usize::from(fit_d) + usize::from(both);
+    let col_j = o.fit_inertia.then_some(col_fs + 1 + usize::from(fit_d) + usize::from(both));
+    let p = col_fs + 1 + usize::from(fit_d) + usize::from(both) + usize::from(o.fit_inertia);
     let total: usize = prepared.iter().map(|p| p.hi - p.lo).sum();
     let mut design = Design::new(p);
     design.x.reserve(total * p);
     design.y.reserve(total);
     design.block.reserve(total);
     let mut theta_e_used = Vec::with_capacity(total);
-    let mut inertial = Vec::with_capacity(total);
+    // dω/dt of each used sample (the inertial torque is J times it).
+    let mut alpha_used = Vec::with_capacity(total);
     let mut row = vec![0.0; p];
     let mut block_base = 0u32;
     let mut runs = Vec::new();
@@ -732,12 +810,32 @@ fn fit_prepared(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Result<
                 FitError::Options(format!("{}: no iq_cmd_a column, needed for the command effort", log.source))
             })?,
         };
+        // The effort through the filter `dω/dt` went through (see the module documentation,
+        // *Inertia*).
+        // The harmonics in it are scaled by the filter's gain at their frequency (≥ 0.998 by
+        // the choice of the corner), and so are their regressors.
         let wbar = prep.speed;
+        let smoothed;
+        let mut harmonic_gain = vec![1.0; o.orders.len()];
+        let effort = if o.smooth_effort {
+            let mut v = effort.clone();
+            let (fs, fc) = kinematics::smooth(&log.t_s, &mut v, kin.corner_hz);
+            for (g, &k) in harmonic_gain.iter_mut().zip(&o.orders) {
+                *g = kinematics::smooth_gain(f64::from(k) * nr * wbar.abs() / TAU, fc, fs);
+            }
+            smoothed = v;
+            &smoothed
+        } else {
+            effort
+        };
         let vmin = o.min_speed_fraction * wbar.abs();
         // Blocks of one electrical period (at least 10 blocks per log).
         let span = (log.theta_fb_rad[prep.hi - 1] - log.theta_fb_rad[prep.lo]).abs();
         let per_block = if prep.periods >= 10.0 { TAU / nr } else { span / 10.0 }.max(f64::MIN_POSITIVE);
         let th0 = log.theta_fb_rad[prep.lo];
+        // The instrument for J: the part of dω/dt periodic in the fitted orders, this log's
+        // own (see the module documentation, *Inertia*).
+        let alpha_periodic = if col_j.is_some() { periodic_part(prep, &o.orders, nr) } else { None };
         let (mut used, mut stalled, mut max_block) = (0usize, 0usize, 0u32);
         #[allow(clippy::needless_range_loop)] // five parallel arrays are read at i
         for i in prep.lo..prep.hi {
@@ -751,8 +849,8 @@ fn fit_prepared(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Result<
             let (s1, c1) = te.sin_cos();
             for (j, &k) in o.orders.iter().enumerate() {
                 let (s, c) = if k == 1 { (s1, c1) } else { (f64::from(k) * te).sin_cos() };
-                row[2 * j] = s;
-                row[2 * j + 1] = c;
+                row[2 * j] = s * harmonic_gain[j];
+                row[2 * j + 1] = c * harmonic_gain[j];
             }
             row[col_fs] = wbar.signum();
             if let Some(cd) = col_d {
@@ -761,16 +859,23 @@ fn fit_prepared(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Result<
             if let Some(cc) = col_c {
                 row[cc] = 1.0;
             }
-            let j_alpha = o.inertia_kg_m2 * kin.alpha_rad_s2[i];
+            let alpha = kin.alpha_rad_s2[i];
+            let j_alpha = match col_j {
+                Some(cj) => {
+                    row[cj] = alpha_periodic.as_ref().map_or(0.0, |c| c.at(te));
+                    0.0
+                }
+                None => o.inertia_kg_m2 * alpha,
+            };
             let y = o.km_nm_per_a * effort[i] - j_alpha - d_ripple * (w - wbar) - d_fixed * wbar;
-            if !y.is_finite() {
+            if !(y.is_finite() && alpha.is_finite()) {
                 return Err(non_finite(format!("{}: the torque Km·i − J·dω/dt at t = {} s", log.source, log.t_s[i])));
             }
             let b = ((th - th0).abs() / per_block) as u32;
             max_block = max_block.max(b);
             design.push(&row, y, block_base + b);
             theta_e_used.push(te.rem_euclid(TAU));
-            inertial.push(j_alpha);
+            alpha_used.push(alpha);
             used += 1;
         }
         block_base += max_block + 1;
@@ -847,12 +952,24 @@ fn fit_prepared(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Result<
     let coulomb = est(col_fs);
     let viscous = col_d.map(est);
     let offset = col_c.map(est);
+    let inertia = col_j.map(est);
+    let inertia_used = inertia.map_or(o.inertia_kg_m2, |j| j.value);
     let finite = |e: &Estimate| e.value.is_finite() && e.ci95.is_finite();
     if !harmonics.iter().all(|h| finite(&h.amplitude_nm) && finite(&h.phase_rad)) {
         return Err(non_finite("a harmonic amplitude or its interval".into()));
     }
     if !(finite(&coulomb) && viscous.iter().chain(&offset).all(finite)) {
         return Err(non_finite("a friction term or its interval".into()));
+    }
+    if !inertia.iter().all(finite) {
+        return Err(non_finite("the inertia or its interval".into()));
+    }
+    if let Some(j) = inertia {
+        if !(j.value > 0.0 && j.ci95 < o.max_inertia_disagreement * j.value) {
+            warnings.push(Warning::InertiaUncertain { value: j.value, ci95: j.ci95 });
+        } else if o.inertia_kg_m2 > 0.0 && (j.value / o.inertia_kg_m2 - 1.0).abs() > o.max_inertia_disagreement {
+            warnings.push(Warning::InertiaDisagrees { value: j.value, ci95: j.ci95, base: o.inertia_kg_m2 });
+        }
     }
     if coulomb.value < coulomb.ci95 {
         warnings.push(Warning::CoulombNotPositive {
@@ -867,7 +984,7 @@ fn fit_prepared(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Result<
     {
         warnings.push(Warning::ViscousNegative { value: d.value, ci95: d.ci95 });
     }
-    for (c, name) in [(Some(col_fs), "Fs"), (col_d, "D"), (col_c, "the constant torque")] {
+    for (c, name) in [(Some(col_fs), "Fs"), (col_d, "D"), (col_c, "the constant torque"), (col_j, "J")] {
         if let Some(c) = c
             && sol.inflation[c] > o.max_inflation
         {
@@ -892,7 +1009,8 @@ fn fit_prepared(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Result<
             let xrow = &design.x[i * p..(i + 1) * p];
             let fitted: f64 = (0..2 * nh).map(|c| xrow[c] * sol.beta[c]).sum();
             ripple.push(fitted + sol.residual[i]);
-            s_inertial += inertial[i] * inertial[i];
+            let j_alpha = inertia_used * alpha_used[i];
+            s_inertial += j_alpha * j_alpha;
             s_fit += fitted * fitted;
         }
         fitted_ss += s_fit;
@@ -912,6 +1030,8 @@ fn fit_prepared(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Result<
         viscous_used: viscous.map_or(o.viscous_fallback_nm_s_per_rad, |v| v.value),
         viscous_nm_s_per_rad: viscous,
         offset_nm: offset,
+        inertia_kg_m2: inertia,
+        inertia_used,
         residual_rms_nm: sol.residual_rms,
         ripple_rms_nm,
         samples_used: sol.residual.len(),
@@ -920,6 +1040,58 @@ fn fit_prepared(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Result<
         warnings,
         samples: FitSamples { theta_e_rad: theta_e_used, ripple_nm: ripple, residual_nm: sol.residual },
     })
+}
+
+/// Fourier coefficients (sin, cos per order, then the mean) of a log's `dω/dt` against the
+/// electrical angle over its used window.
+struct Periodic {
+    orders: Vec<u16>,
+    coef: Vec<f64>,
+}
+
+impl Periodic {
+    fn at(&self, te: f64) -> f64 {
+        let mut v = self.coef[2 * self.orders.len()];
+        for (j, &k) in self.orders.iter().enumerate() {
+            let (s, c) = (f64::from(k) * te).sin_cos();
+            v += self.coef[2 * j] * s + self.coef[2 * j + 1] * c;
+        }
+        v
+    }
+}
+
+/// The least-squares fit of `dω/dt` over the window of `prep` on `sin, cos(k·Nr·θ_fb)` of
+/// `orders` and a constant; `None` when it cannot be solved.
+fn periodic_part(prep: &Prepared, orders: &[u16], nr: f64) -> Option<Periodic> {
+    let m = 2 * orders.len() + 1;
+    let mut ata = nalgebra::DMatrix::<f64>::zeros(m, m);
+    let mut atb = nalgebra::DVector::<f64>::zeros(m);
+    let mut row = vec![0.0; m];
+    for i in prep.lo..prep.hi {
+        let te = nr * prep.log.theta_fb_rad[i];
+        for (j, &k) in orders.iter().enumerate() {
+            let (s, c) = (f64::from(k) * te).sin_cos();
+            row[2 * j] = s;
+            row[2 * j + 1] = c;
+        }
+        row[m - 1] = 1.0;
+        let a = prep.kin.alpha_rad_s2[i];
+        for r in 0..m {
+            atb[r] += row[r] * a;
+            for c in r..m {
+                ata[(r, c)] += row[r] * row[c];
+            }
+        }
+    }
+    for r in 0..m {
+        for c in 0..r {
+            ata[(r, c)] = ata[(c, r)];
+        }
+    }
+    let coef = ata.cholesky()?.solve(&atb);
+    coef.iter()
+        .all(|v| v.is_finite())
+        .then(|| Periodic { orders: orders.to_vec(), coef: coef.iter().copied().collect() })
 }
 
 /// The friction and constant terms the logs' levels (direction, `|ω̄|`) can separate, and

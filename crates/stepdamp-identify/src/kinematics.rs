@@ -79,15 +79,8 @@ pub fn estimate(t: &[f64], theta: &[f64], corner: f64) -> Kinematics {
             corner_hz: corner,
         };
     }
-    let ts = median_step(t);
-    let fs = 1.0 / ts;
-    let fc = corner.min(0.45 * fs).max(1e-6 * fs);
     let mut r: Vec<f64> = t.iter().zip(theta).map(|(&ti, &yi)| yi - thm - w * (ti - tm)).collect();
-    let bq = Biquad::lowpass(fc / fs);
-    bq.run_forward(&mut r);
-    r.reverse();
-    bq.run_forward(&mut r);
-    r.reverse();
+    let (fs, fc) = smooth(t, &mut r, corner);
     let mut omega = vec![0.0; n];
     let mut alpha = vec![0.0; n];
     for i in 1..n - 1 {
@@ -103,6 +96,28 @@ pub fn estimate(t: &[f64], theta: &[f64], corner: f64) -> Kinematics {
     // A Butterworth biquad settles to ~1 % in about 1.5 periods of its corner; take three.
     let edge = ((3.0 * fs / fc).ceil() as usize).min(n);
     Kinematics { omega_rad_s: omega, alpha_rad_s2: alpha, mean_speed_rad_s: w, edge, corner_hz: fc }
+}
+
+/// Low-passes `x` (sampled at times `t`) in place with the zero-phase filter of [`estimate`]
+/// at `corner` Hz, so that a signal smoothed here lines up sample for sample with the `ω`
+/// and `α` of [`estimate`]. Returns the sample rate used (1 / median step) and the corner
+/// actually used, Hz.
+pub fn smooth(t: &[f64], x: &mut [f64], corner: f64) -> (f64, f64) {
+    let fs = 1.0 / median_step(t);
+    let fc = corner.min(0.45 * fs).max(1e-6 * fs);
+    let bq = Biquad::lowpass(fc / fs);
+    bq.run_forward(x);
+    x.reverse();
+    bq.run_forward(x);
+    x.reverse();
+    (fs, fc)
+}
+
+/// Gain of the zero-phase filter of [`smooth`] (corner `fc`, sample rate `fs`, both Hz) at
+/// `f` Hz: `|H|²` of the bilinear Butterworth biquad, `1 / (1 + (tan(πf/fs) / tan(πfc/fs))⁴)`.
+pub fn smooth_gain(f: f64, fc: f64, fs: f64) -> f64 {
+    let x = (PI * f / fs).tan() / (PI * fc / fs).tan();
+    1.0 / (1.0 + x.powi(4))
 }
 
 /// Median of the time steps in s.
@@ -175,6 +190,22 @@ mod tests {
         let amp = -2.0 * s / n;
         let want = a * big_w * big_w;
         assert!((amp - want).abs() < 0.02 * want, "α ripple {amp}, want {want}");
+    }
+
+    #[test]
+    fn smoothing_a_sine_scales_it_by_the_stated_gain() {
+        let fs = 20_000.0;
+        let t: Vec<f64> = (0..40_000).map(|i| f64::from(i) / fs).collect();
+        for f in [10.0, 100.0, 300.0] {
+            let mut x: Vec<f64> = t.iter().map(|&t| (TAU * f * t).sin()).collect();
+            let (_, fc) = smooth(&t, &mut x, 200.0);
+            let mid = 20_000;
+            let amp = x[mid..mid + 2000].iter().zip(&t[mid..]).map(|(v, &t)| v * (TAU * f * t).sin()).sum::<f64>()
+                * 2.0
+                / 2000.0;
+            let g = smooth_gain(f, fc, fs);
+            assert!((amp - g).abs() < 2e-3, "{f} Hz: {amp} vs {g}");
+        }
     }
 
     #[test]

@@ -1,4 +1,5 @@
-//! The identified model (detent harmonics, `Fs`, `D`) and the motor profile made from it.
+//! The identified model (detent harmonics, `Fs`, `D`, and `J` when identified) and the
+//! motor profile made from it.
 
 use crate::fit::Fit;
 use stepdamp_sim::profile::DetentTerm;
@@ -15,11 +16,13 @@ pub struct Model {
     pub coulomb_friction_nm: f64,
     /// Viscous friction `D` in N·m·s/rad (≥ 0).
     pub viscous_nm_s_per_rad: f64,
+    /// Rotor + load inertia `J` in kg·m² when identified; `None` keeps the base profile's.
+    pub inertia_kg_m2: Option<f64>,
 }
 
 impl Model {
-    /// The model a fit found. Negative friction estimates become 0 (friction cannot drive the
-    /// rotor); the fit warns when that happens ([`crate::fit::Warning::CoulombNotPositive`],
+    /// The model a fit found, with `J` when the fit identified it ([`Fit::inertia_kg_m2`]).
+    /// Negative friction estimates become 0 (friction cannot drive the rotor); the fit warns when that happens ([`crate::fit::Warning::CoulombNotPositive`],
     /// [`crate::fit::Warning::ViscousNegative`]). `D` is the fitted one, or the fallback the fit
     /// held when the logs could not separate it ([`Fit::viscous_used`]).
     pub fn from_fit(f: &Fit) -> Model {
@@ -35,27 +38,32 @@ impl Model {
                 .collect(),
             coulomb_friction_nm: f.coulomb_friction_nm.value.max(0.0),
             viscous_nm_s_per_rad: f.viscous_used.max(0.0),
+            inertia_kg_m2: f.inertia_kg_m2.map(|j| j.value),
         }
     }
 
-    /// The model of a profile (its detent list and friction).
+    /// The model of a profile (its detent list and friction; `J` left to the profile).
     pub fn of_profile(p: &Profile) -> Model {
         Model {
             detent: p.motor.detent.clone(),
             coulomb_friction_nm: p.motor.coulomb_friction_nm,
             viscous_nm_s_per_rad: p.motor.viscous_nm_s_per_rad,
+            inertia_kg_m2: None,
         }
     }
 
-    /// `base` with `motor.detent`, `motor.coulomb_friction_nm` and
-    /// `motor.viscous_nm_s_per_rad` replaced by this model, validated. Everything else
-    /// (drive, encoder, servo, inertia, Km) is kept. `name` replaces the profile's name when
+    /// `base` with `motor.detent`, `motor.coulomb_friction_nm`,
+    /// `motor.viscous_nm_s_per_rad` and, when identified, `motor.inertia_kg_m2` replaced by
+    /// this model, validated. Everything else (drive, encoder, servo, Km) is kept. `name` replaces the profile's name when
     /// given.
     pub fn apply_to(&self, base: &Profile, name: Option<&str>, origin: &str) -> Result<Profile, ProfileError> {
         let mut p = base.clone();
         p.motor.detent = self.detent.clone();
         p.motor.coulomb_friction_nm = self.coulomb_friction_nm;
         p.motor.viscous_nm_s_per_rad = self.viscous_nm_s_per_rad;
+        if let Some(j) = self.inertia_kg_m2 {
+            p.motor.inertia_kg_m2 = j;
+        }
         if let Some(n) = name {
             p.name = n.to_string();
         }
@@ -102,14 +110,20 @@ mod tests {
             detent: vec![DetentTerm { order: 4, amplitude_nm: 0.03, phase_rad: 0.1 }],
             coulomb_friction_nm: 0.02,
             viscous_nm_s_per_rad: 0.002,
+            inertia_kg_m2: None,
         };
         let p = m.apply_to(&base, Some("x"), "out.toml").unwrap();
         assert_eq!(p.motor.detent, m.detent);
         assert_eq!((p.motor.coulomb_friction_nm, p.motor.viscous_nm_s_per_rad), (0.02, 0.002));
         assert_eq!((p.name.as_str(), &p.drive, p.motor.inertia_kg_m2), ("x", &base.drive, base.motor.inertia_kg_m2));
+        let with_j = Model { inertia_kg_m2: Some(3e-5), ..m.clone() };
+        assert_eq!(with_j.apply_to(&base, None, "out.toml").unwrap().motor.inertia_kg_m2, 3e-5);
         let bad = Model { coulomb_friction_nm: f64::NAN, ..m };
         let e = bad.apply_to(&base, None, "out.toml").unwrap_err().to_string();
         assert!(e.contains("out.toml") && e.contains("coulomb_friction_nm"), "{e}");
+        let bad = Model { inertia_kg_m2: Some(-1.0), ..with_j };
+        let e = bad.apply_to(&base, None, "out.toml").unwrap_err().to_string();
+        assert!(e.contains("inertia_kg_m2"), "{e}");
     }
 
     #[test]
@@ -118,6 +132,7 @@ mod tests {
             detent: vec![DetentTerm { order: 4, amplitude_nm: 0.02, phase_rad: 0.0 }],
             coulomb_friction_nm: 0.0,
             viscous_nm_s_per_rad: 0.0,
+            inertia_kg_m2: None,
         };
         let b = Model { detent: vec![], ..a.clone() };
         assert!((a.ripple_difference_rms_nm(&b) - a.ripple_rms_nm()).abs() < 1e-15);

@@ -288,7 +288,8 @@ pub fn plan(base: &Profile, o: &PlanOptions) -> Result<Plan, PlanError> {
 }
 
 /// Seed of run `index` from the base seed (SplitMix64): deterministic, independent of the
-/// number of threads.
+/// number of threads. The same mixing as the sweep's lane seeds in `stepdamp-sim`, which
+/// keeps its function private (so this copy stays; use the sim's once it is exported).
 pub fn run_seed(base: u64, index: u64) -> u64 {
     let mut z = base.wrapping_add(index.wrapping_add(1).wrapping_mul(0x9E37_79B9_7F4A_7C15));
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
@@ -320,6 +321,27 @@ pub fn simulate_run(
     Ok(rows)
 }
 
+/// Simulates every run of `plan` on `motor` in parallel (seed of run `i`:
+/// [`run_seed`]`(seed, i)`), with the controller of `controller` and `comp`, and hands each
+/// run's rows to `each` as soon as it is done; returns what `each` returned, in plan order.
+/// The set-up is checked once before the parallel part, so a bad one fails early.
+fn for_each_run<T: Send, E: From<SimError> + Send>(
+    motor: &Profile,
+    controller: &Profile,
+    comp: Compensation,
+    plan: &Plan,
+    current_noise_a: f64,
+    seed: u64,
+    each: impl Fn(&PlannedRun, Vec<LogRow>) -> Result<T, E> + Sync,
+) -> Result<Vec<T>, E> {
+    ClosedLoop::new(motor, controller, Mode::Servo, comp, &SimOptions { current_noise_a, ..SimOptions::default() })?;
+    plan.runs
+        .par_iter()
+        .enumerate()
+        .map(|(i, r)| each(r, simulate_run(motor, controller, comp, r, current_noise_a, run_seed(seed, i as u64))?))
+        .collect()
+}
+
 /// Simulates every run of `plan` on `motor` (in parallel; seeds from `seed`), with the
 /// controller of `controller` (the plan's profile for identification runs) and `comp`.
 /// Returns the logs in plan order. `tick` is called once per finished run.
@@ -332,17 +354,10 @@ pub fn simulate_plan(
     seed: u64,
     tick: &(dyn Fn() + Sync),
 ) -> Result<Vec<RunLog>, SimError> {
-    // Fail early (outside the parallel part) on a bad set-up.
-    ClosedLoop::new(motor, controller, Mode::Servo, comp, &SimOptions { current_noise_a, ..SimOptions::default() })?;
-    plan.runs
-        .par_iter()
-        .enumerate()
-        .map(|(i, r)| {
-            let rows = simulate_run(motor, controller, comp, r, current_noise_a, run_seed(seed, i as u64))?;
-            tick();
-            Ok(RunLog::from_rows(&rows, &r.name))
-        })
-        .collect()
+    for_each_run(motor, controller, comp, plan, current_noise_a, seed, |r, rows| {
+        tick();
+        Ok(RunLog::from_rows(&rows, &r.name))
+    })
 }
 
 /// What [`run_plan`] did.
@@ -354,45 +369,39 @@ pub struct PlanRun {
     pub files: Vec<PathBuf>,
 }
 
-/// Plans the identification of `motor`, simulates the runs (servo mode, compensation off,
-/// the options' current noise, the profile's encoder) in parallel with deterministic seeds,
-/// and writes one run-log CSV per run into `out_dir` (`<run name>.csv`, design.md §6
-/// columns). Each file is written to a temporary name and renamed when complete.
+/// Plans the identification from the `base` profile (what the user knows of the motor: its
+/// `J` and detent may be guesses, see [`plan`]), simulates the runs on `motor` (the plant:
+/// servo mode with the plan's controller, compensation off, the options' current noise, the
+/// motor's encoder) in parallel with deterministic seeds (the same as [`simulate_plan`]
+/// with `o.seed`), and writes one run-log CSV per run into `out_dir` (`<run name>.csv`,
+/// design.md §6 columns), creating it if needed. Each file is written to a temporary name
+/// and renamed when complete; on an error, the files already written are removed again.
 pub fn run_plan(
     motor: &Profile,
+    base: &Profile,
     out_dir: &Path,
     o: &PlanOptions,
     tick: &(dyn Fn() + Sync),
 ) -> Result<PlanRun, PlanError> {
-    let plan = plan(motor, o)?;
+    let plan = plan(base, o)?;
     std::fs::create_dir_all(out_dir).map_err(|source| PlanError::Write { path: out_dir.to_path_buf(), source })?;
-    let _ = ClosedLoop::new(
-        motor,
-        &plan.profile,
-        Mode::Servo,
-        Compensation::Off,
-        &SimOptions { current_noise_a: o.current_noise_a, ..SimOptions::default() },
-    )?;
-    let files = plan
-        .runs
-        .par_iter()
-        .enumerate()
-        .map(|(i, r)| {
-            let rows = simulate_run(
-                motor,
-                &plan.profile,
-                Compensation::Off,
-                r,
-                o.current_noise_a,
-                run_seed(o.seed, i as u64),
-            )?;
-            let path = out_dir.join(format!("{}.csv", r.name));
-            write_rows_atomic(&path, &rows)?;
-            tick();
-            Ok(path)
-        })
-        .collect::<Result<Vec<_>, PlanError>>()?;
-    Ok(PlanRun { plan, files })
+    let written = std::sync::Mutex::new(Vec::new());
+    let done = for_each_run(motor, &plan.profile, Compensation::Off, &plan, o.current_noise_a, o.seed, |r, rows| {
+        let path = out_dir.join(format!("{}.csv", r.name));
+        write_rows_atomic(&path, &rows)?;
+        written.lock().unwrap_or_else(std::sync::PoisonError::into_inner).push(path.clone());
+        tick();
+        Ok::<_, PlanError>(path)
+    });
+    match done {
+        Ok(files) => Ok(PlanRun { plan, files }),
+        Err(e) => {
+            for f in written.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner) {
+                let _ = std::fs::remove_file(f);
+            }
+            Err(e)
+        }
+    }
 }
 
 /// Writes log rows to `path` through a temporary file in the same directory.

@@ -199,9 +199,20 @@ pub fn refine(
     }];
     let mut current = start.clone();
     // The feed-forward acts at the controller's (quantised) angle: no averaging correction.
-    let fit_options = &FitOptions { correct_quantisation: false, ..fit_options.clone() };
-    // Records the plan's runs with `ff` fed forward and fits them.
+    // `J` is held at the starting estimate's: with the detent cancelled the rotor hardly
+    // accelerates, and the feed-forward-on logs carry little information on it.
+    let inertia = start.inertia_kg_m2.or(start_fit.map(|f| f.inertia_used)).unwrap_or(fit_options.inertia_kg_m2);
+    let fit_options = &FitOptions {
+        correct_quantisation: false,
+        smooth_effort: false,
+        fit_inertia: false,
+        inertia_kg_m2: inertia,
+        ..fit_options.clone()
+    };
+    // Records the plan's runs with `ff` fed forward (the plan's servo gains kept) and fits
+    // them; the estimates carry the starting `J`.
     let run_with = |ff: &Model, round: u64| -> Result<Fit, RefineError> {
+        let ff = Model { inertia_kg_m2: None, ..ff.clone() };
         let controller = ff.apply_to(&plan.profile, None, "refinement estimate")?;
         let seed = crate::plan::run_seed(o.seed, 1000 + round);
         let logs = simulate_plan(motor, &controller, Compensation::Patent, plan, o.current_noise_a, seed, tick)?;
@@ -209,7 +220,7 @@ pub fn refine(
     };
     for it in 1..=o.max_iterations {
         let f = run_with(&current, it as u64)?;
-        let next = Model::from_fit(&f);
+        let next = Model { inertia_kg_m2: current.inertia_kg_m2, ..Model::from_fit(&f) };
         let ripple = next.ripple_difference_rms_nm(&current);
         let previous = steps.last().map_or(f64::INFINITY, |s| s.ripple_rms_nm);
         steps.push(RefineStep {

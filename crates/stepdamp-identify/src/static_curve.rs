@@ -461,5 +461,8 @@ mod tests {
         assert!(e.contains("c.csv") && e.contains("line 3") && e.contains("increase"), "{e}");
         let e = parse_table("angle,torque_nm\n0.1,1\n".as_bytes(), "c.csv").unwrap_err().to_string();
         assert!(e.contains("c.csv") && e.contains("theta_rad"), "{e}");
+        // A short row names the column it lacks, not a parser's field count.
+        let e = parse_table("theta_rad,torque_nm\n0.0,1\n0.1\n".as_bytes(), "c.csv").unwrap_err().to_string();
+        assert!(e.contains("c.csv") && e.contains("line 3") && e.contains("torque_nm"), "{e}");
     }
 }

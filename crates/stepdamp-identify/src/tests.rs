@@ -19,6 +19,26 @@ fn patent() -> Profile {
     Profile::preset("patent-motor").unwrap()
 }
 
+/// What a user starts from: the preset's profile with its `J` (the true one may differ) and
+/// no detent (the plan then assumes typical amplitudes).
+fn user_base() -> Profile {
+    let mut b = patent();
+    b.motor.detent.clear();
+    b
+}
+
+/// The identified `J` over the true one, and whether the fit warned that it disagrees with
+/// the base profile's.
+fn inertia_check(truth: &Profile, base: &Profile, f: &Fit) -> (f64, bool) {
+    let j = f.inertia_kg_m2.expect("J is identified by default");
+    assert!(j.ci95 > 0.0 && j.ci95 < 0.1 * j.value, "J {j:?}");
+    let warned = f
+        .warnings
+        .iter()
+        .any(|w| matches!(w, Warning::InertiaDisagrees { base: b, .. } if *b == base.motor.inertia_kg_m2));
+    (j.value / truth.motor.inertia_kg_m2, warned)
+}
+
 /// Errors of an identified model against the truth: worst amplitude error over its
 /// tolerance (`max(5 %, 0.5 mN·m)`), worst phase error (rad) and the relative `Fs` error,
 /// over the harmonics of 5 mN·m or more.
@@ -44,7 +64,8 @@ fn errors(truth: &Profile, m: &Model) -> Errors {
 }
 
 /// `patent-motor` identified from the log files `run_plan` writes (current noise 0.01 A,
-/// 4000-count encoder), read back with `read_log`.
+/// 4000-count encoder), read back with `read_log`; planned and fitted from [`user_base`]
+/// (no detent, the preset's `J`).
 fn patent_identified() -> &'static (Fit, Model) {
     static S: OnceLock<(Fit, Model)> = OnceLock::new();
     S.get_or_init(|| {
@@ -52,7 +73,8 @@ fn patent_identified() -> &'static (Fit, Model) {
         let dir = tempfile::tempdir().unwrap();
         let o = PlanOptions { electrical_periods: 30.0, ..PlanOptions::default() };
         assert!(o.current_noise_a > 0.0);
-        let done = run_plan(&m, dir.path(), &o, &|| {}).unwrap();
+        let done = run_plan(&m, &user_base(), dir.path(), &o, &|| {}).unwrap();
+        assert!(!done.plan.detent_from_profile);
         let logs: Vec<RunLog> =
             done.files.iter().map(|f| read_log(f, &LogOptions::new(m.motor.pole_pairs)).unwrap()).collect();
         let f = fit(&logs, &FitOptions::for_profile(&done.plan.profile, &[1, 2, 4])).unwrap();
@@ -78,6 +100,10 @@ fn patent_motor_from_run_plan_logs_is_within_5_percent_and_0_05_rad_and_fs_withi
     // D too (two speeds): within 20 %.
     let d = f.viscous_nm_s_per_rad.expect("two speeds separate D").value;
     assert!((d / 0.001 - 1.0).abs() < 0.2, "D {d}");
+    // J identified (the base profile's is right here): within 10 %, no disagreement warning.
+    let (j, warned) = inertia_check(&patent(), &user_base(), f);
+    eprintln!("patent-motor: J identified / true {j:.4} ({:?})", f.inertia_kg_m2);
+    assert!((j - 1.0).abs() < 0.1 && !warned, "J ratio {j}, warned {warned}");
     // The plan's runs are slow enough for the loop and the encoder: no such warnings.
     assert!(
         !f.warnings.iter().any(|w| matches!(
@@ -113,27 +139,37 @@ fn random_motor(seed: u64) -> Profile {
 #[test]
 fn fifty_random_motors_are_identified_within_5_percent_0_05_rad_and_fs_within_10_percent() {
     // Shorter runs than the default plan (15 electrical periods, ≥ 1 s steady) to keep the
-    // test fast; logs in memory.
+    // test fast; logs in memory. The user knows neither the detent nor the load: the plan
+    // and the fit start from the preset (its J, no detent), the true J is ×0.5–×3 of it.
     let o = PlanOptions { electrical_periods: 15.0, min_steady_s: 1.0, ..PlanOptions::default() };
-    let results: Vec<(u64, Errors)> = (0..50u64)
+    let base = user_base();
+    let results: Vec<(u64, Errors, f64)> = (0..50u64)
         .into_par_iter()
         .map(|i| {
             let m = random_motor(1000 + i);
-            let p = plan(&m, &o).unwrap();
+            let p = plan(&base, &o).unwrap();
             let logs = simulate_plan(&m, &p.profile, Compensation::Off, &p, o.current_noise_a, 7 + i, &|| {}).unwrap();
             let f = fit(&logs, &FitOptions::for_profile(&p.profile, &[1, 2, 4])).unwrap();
-            (i, errors(&m, &Model::from_fit(&f)))
+            let (j, warned) = inertia_check(&m, &base, &f);
+            let off = (m.motor.inertia_kg_m2 / base.motor.inertia_kg_m2 - 1.0).abs();
+            // The disagreement (> 20 %) is warned about when clear, and not when J is close.
+            assert!(warned || off < 0.3, "motor {i}: J ×{:.2} of the base, not warned", 1.0 + off);
+            assert!(!warned || off > 0.1, "motor {i}: J ×{:.2} of the base, warned", 1.0 + off);
+            (i, errors(&m, &Model::from_fit(&f)), j)
         })
         .collect();
-    let worst = |g: fn(&Errors) -> f64| results.iter().map(|(_, e)| g(e)).fold(0.0, f64::max);
+    let worst = |g: fn(&Errors) -> f64| results.iter().map(|(_, e, _)| g(e)).fold(0.0, f64::max);
+    let j_worst = results.iter().map(|(_, _, j)| (j - 1.0).abs()).fold(0.0, f64::max);
     eprintln!(
-        "50 random motors: worst amplitude error {:.2} % ({:.2} of tolerance), phase {:.4} rad, Fs {:.2} %",
+        "50 random motors: worst amplitude error {:.2} % ({:.2} of tolerance), phase {:.4} rad, Fs {:.2} %, J {:.2} %",
         100.0 * worst(|e| e.amplitude_relative),
         worst(|e| e.amplitude_over_tolerance),
         worst(|e| e.phase_rad),
-        100.0 * worst(|e| e.coulomb_relative)
+        100.0 * worst(|e| e.coulomb_relative),
+        100.0 * j_worst
     );
-    for (i, e) in &results {
+    for (i, e, j) in &results {
+        assert!((j - 1.0).abs() <= 0.1, "motor {i}: J identified ×{j:.3} of the truth");
         assert!(
             e.amplitude_over_tolerance <= 1.0,
             "motor {i}: amplitude error {:.3} of tolerance",
@@ -212,7 +248,7 @@ fn ten_seconds_of_20_khz_logs_parse_and_identify_quickly() {
     let m = patent();
     let dir = tempfile::tempdir().unwrap();
     let o = PlanOptions { electrical_periods: 2.0, min_steady_s: 2.3, ..PlanOptions::default() };
-    let done = run_plan(&m, dir.path(), &o, &|| {}).unwrap();
+    let done = run_plan(&m, &m, dir.path(), &o, &|| {}).unwrap();
     let t0 = std::time::Instant::now();
     let logs: Vec<RunLog> = done.files.iter().map(|f| read_log(f, &LogOptions::new(50)).unwrap()).collect();
     let read = t0.elapsed().as_secs_f64();
@@ -268,12 +304,14 @@ fn synthetic_model() -> Model {
         ],
         coulomb_friction_nm: 0.01,
         viscous_nm_s_per_rad: 0.002,
+        inertia_kg_m2: None,
     }
 }
 
 fn synthetic_options() -> FitOptions {
     let mut o = FitOptions::for_profile(&patent(), &[1, 2, 4]);
     o.inertia_kg_m2 = 0.0;
+    o.fit_inertia = false;
     o.correct_quantisation = false;
     o.servo_bandwidth_hz = None;
     o
