@@ -61,22 +61,7 @@ enum Command {
     Identify(identify::IdentifyArgs),
 }
 
-/// A `println!` to a closed pipe panics with this message; the commands print through
-/// [`out!`], and this catches the rest: a closed standard output ends the command quietly.
-fn quiet_on_closed_stdout() {
-    let default = std::panic::take_hook();
-    std::panic::set_hook(Box::new(move |info| {
-        let p = info.payload();
-        let msg = p.downcast_ref::<String>().map(String::as_str).or_else(|| p.downcast_ref::<&str>().copied());
-        if msg.is_some_and(|m| m.starts_with("failed printing to stdout") && m.contains("Broken pipe")) {
-            std::process::exit(0);
-        }
-        default(info);
-    }));
-}
-
 fn main() {
-    quiet_on_closed_stdout();
     let cli = match Cli::try_parse() {
         Ok(c) => c,
         Err(e) => {

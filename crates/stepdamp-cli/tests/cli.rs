@@ -314,7 +314,12 @@ fn a_closed_stdout_ends_the_command_quietly() {
     let mut reader = Command::new("true").stdin(Stdio::piped()).spawn().expect("runs true");
     let closed = reader.stdin.take().unwrap();
     reader.wait().unwrap();
-    for args in [vec!["motor", "show", "patent-motor"], vec!["resonance"], vec!["motor", "list"]] {
+    for args in [
+        vec!["motor", "show", "patent-motor"],
+        vec!["resonance"],
+        vec!["motor", "list"],
+        vec!["identify", "plan", "--motor", "patent-motor"],
+    ] {
         let closed = closed.try_clone_as_stdio();
         let o = Command::new(env!("CARGO_BIN_EXE_stepdamp"))
             .args(&args)
