@@ -21,13 +21,16 @@ cp "$tmp/lowdamp/sweep.png" docs/sweep-estimated-low-damping.png
 # Issue 4: identification from the planned servo runs (simulated, with current noise), then an
 # open-loop sweep whose controller uses the identified profile instead of the true one.
 $bin --quiet identify run --motor patent-motor --out "$tmp/idrun" > /dev/null
-bw=$(sed -n 's/^servo: position-loop bandwidth \([0-9.]*\) Hz.*/\1/p' "$tmp/idrun/plan.txt")
 logs=()
 for f in "$tmp"/idrun/run-*.csv; do logs+=(--log "$f"); done
-$bin --quiet identify "${logs[@]}" --motor patent-motor --servo-bandwidth "$bw" \
+# base.toml: the profile the runs were recorded with (the plan's [servo] settings).
+$bin --quiet identify "${logs[@]}" --motor "$tmp/idrun/base.toml" \
     --out docs/profiles/patent-motor-identified.toml --report "$tmp/idrep" | grep -v ' s, fitted in ' > docs/identify-patent-motor.txt
 cp "$tmp/idrep/spectrum.png" docs/identify-spectrum-patent-motor.png
 cp "$tmp/idrep/residual.png" docs/identify-residual-patent-motor.png
+# Refinement with the feed-forward on (the patent's criterion): before/after table.
+$bin --quiet identify run --motor patent-motor --out "$tmp/refine" --refine | grep -v -e ' in [0-9.]* s$' -e '^wrote ' > docs/identify-refine-patent-motor.txt
+cp "$tmp/refine/refine-summary.csv" docs/identify-refine-patent-motor.csv
 $bin --quiet sweep --motor patent-motor --controller-motor docs/profiles/patent-motor-identified.toml --mode open-loop --compensation off,patent --out "$tmp/idsweep" > docs/sweep-identified.txt
 # Summaries name the temporary directory; keep them free of it.
 sed -i "s|$tmp/[a-z]*/|out/|" docs/*.txt
