@@ -389,6 +389,7 @@ impl Config {
                     OBSERVER_BANDWIDTH_HZ,
                     observer_floor_v,
                     usize::from(d.computation_delay_periods),
+                    bw,
                 ))
             } else {
                 None

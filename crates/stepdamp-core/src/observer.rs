@@ -71,6 +71,9 @@ pub struct LoadAngleObserver {
     pub(crate) delay_periods: usize,
     /// The configured torque constant, N·m/A.
     pub(crate) km: f32,
+    /// Periods the current command must have held still before the standstill trim of
+    /// `R̂` runs: five time constants of the current loop plus the computation delay.
+    pub(crate) settle_periods: u16,
     /// Filter of the torque-constant estimate.
     pub(crate) km_filter: LowPass,
 }
@@ -106,11 +109,15 @@ pub struct ObserverState {
     pub delta_rad: f32,
     /// Torque-constant estimate, N·m/A (the configured value until the motor runs).
     pub km_hat: f32,
+    /// Periods since the current command last changed (saturating).
+    pub command_steady_periods: u16,
 }
 
 impl LoadAngleObserver {
     /// An observer for a winding of `r_ohm`, `l_h`, sampled every `period_s`, with the
-    /// voltage applied `delay_periods` (0 or 1) after it is computed.
+    /// voltage applied `delay_periods` (0 or 1) after it is computed, behind a first-order
+    /// current loop of `current_loop_bandwidth_hz`.
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         r_ohm: f32,
         l_h: f32,
@@ -119,6 +126,7 @@ impl LoadAngleObserver {
         bandwidth_hz: f32,
         e_floor_v: f32,
         delay_periods: usize,
+        current_loop_bandwidth_hz: f32,
     ) -> Self {
         LoadAngleObserver {
             r_ohm,
@@ -137,6 +145,11 @@ impl LoadAngleObserver {
             delay_periods: delay_periods.min(1),
             km,
             km_filter: LowPass::new(5.0, period_s),
+            settle_periods: {
+                let tau_periods = 1.0 / (core::f32::consts::TAU * current_loop_bandwidth_hz * period_s);
+                // `as` saturates (and maps NaN to 0): the bound keeps it meaningful.
+                (5.0 * tau_periods + delay_periods.min(1) as f32 + 1.0).min(f32::from(u16::MAX)) as u16
+            },
         }
     }
 
@@ -208,19 +221,24 @@ impl LoadAngleObserver {
         self.slow.update(&mut st.residual_power_v2, rd * rd + rq * rq);
         if direction == 0.0 {
             // Standstill: no back-EMF, so what remains along the current is resistance
-            // error; trimmed once the current has settled on its command.
+            // error; trimmed once the current has settled on its command, which the loop
+            // does within `settle_periods` of the command's last change.
             // A rotor still settling after a stop makes back-EMF too, mostly across the
             // current (δ is small); a resistance error makes it only along the current. So
             // trim only while the fast back-EMF across the current is within the floor plus
             // three standard deviations of the fast filter's noise (sensor noise must not
             // stop the trim).
+            // Only the command and the filtered back-EMF enter, never the sample: with the
+            // sample, its noise (which the loop's reaction puts into the voltage too) made
+            // both the gate and the product `ê·i` biased, and 20 mA of noise moved R̂ enough
+            // to make the estimate worse than θ_cmd at the lowest resonance.
             let cmd = st.command_history[0];
-            let settled = (cmd.d - id).abs() + (cmd.q - iq).abs() < 0.02 * (cmd.d.abs() + cmd.q.abs());
-            let i2 = id * id + iq * iq;
-            let across = st.e_dq.q * id - st.e_dq.d * iq;
+            let settled = st.command_steady_periods >= self.settle_periods;
+            let c2 = cmd.d * cmd.d + cmd.q * cmd.q;
+            let across = st.e_dq.q * cmd.d - st.e_dq.d * cmd.q;
             let quiet = self.e_floor_v * self.e_floor_v + 9.0 * self.fast_noise_gain * st.residual_power_v2;
-            if settled && i2 > 1e-4 && across * across < quiet * i2 {
-                let de = (ed * id + eq * iq) / i2;
+            if settled && c2 > 1e-4 && across * across < quiet * c2 {
+                let de = (st.e_dq.d * cmd.d + st.e_dq.q * cmd.q) / c2;
                 st.r_hat_ohm = (st.r_hat_ohm + self.r_trim_gain * de).max(0.25 * self.r_ohm).min(4.0 * self.r_ohm);
             }
             st.delta_rad = 0.0;
@@ -275,6 +293,11 @@ impl LoadAngleObserver {
     pub fn record(&self, st: &mut ObserverState, v: Ab, i_cmd: Dq) {
         st.voltage_history[1] = st.voltage_history[0];
         st.voltage_history[0] = v;
+        let prev = st.command_history[0];
+        let change = (i_cmd.d - prev.d).abs() + (i_cmd.q - prev.q).abs();
+        // A change within float rounding of the command is no change; NaN is one.
+        let still = change <= 1e-6 * (i_cmd.d.abs() + i_cmd.q.abs());
+        st.command_steady_periods = if still { st.command_steady_periods.saturating_add(1) } else { 0 };
         st.command_history[1] = st.command_history[0];
         st.command_history[0] = i_cmd;
     }
@@ -291,7 +314,7 @@ mod tests {
     const TS: f32 = 5e-5;
 
     fn observer(r: f32, km: f32) -> LoadAngleObserver {
-        LoadAngleObserver::new(r, L, km, TS, 500.0, 0.02 * r * 1.9, 0)
+        LoadAngleObserver::new(r, L, km, TS, 500.0, 0.02 * r * 1.9, 0, 1500.0)
     }
 
     fn rot(th: f32, x: Dq) -> Ab {
@@ -340,6 +363,52 @@ mod tests {
         let mut st = ObserverState::default();
         run(&obs, &mut st, 0.0, 0.0, R, 1_000);
         assert!((st.r_hat_ohm - R).abs() < 0.001 * R, "{}", st.r_hat_ohm);
+    }
+
+    #[test]
+    fn sensor_noise_in_a_closed_current_loop_does_not_bias_the_resistance_trim() {
+        // A PI current loop (Kp = L·ωc, Ki = R·ωc, 1500 Hz) holds 1.9 A at standstill with
+        // 20 mA of sensor noise on each axis: its reaction to the noise is in the voltage,
+        // correlated with the samples. R̂ starts 10 % high and must settle on R.
+        let obs = observer(1.1 * R, KM);
+        let mut st = ObserverState::default();
+        let wc = TAU * 1500.0;
+        let (kp, ki_ts) = (L * wc, R * wc * TS);
+        let cmd = Dq { d: 1.9, q: 0.0 };
+        let (mut i, mut integ) = (Dq { d: 0.0, q: 0.0 }, Dq { d: 0.0, q: 0.0 });
+        // xorshift64*; the sum of 12 uniforms is close enough to a normal of σ 1.
+        let mut x = 0x2545_F491_4F6C_DD1Du64;
+        let mut noise = || {
+            let mut sum = -6.0f32;
+            for _ in 0..12 {
+                x ^= x >> 12;
+                x ^= x << 25;
+                x ^= x >> 27;
+                sum += (x.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 40) as f32 / (1u64 << 24) as f32;
+            }
+            0.02 * sum
+        };
+        let (mut sum, mut worst, mut count) = (0.0f32, 0.0f32, 0.0f32);
+        for n in 0..40_000 {
+            let meas = Dq { d: i.d + noise(), q: i.q + noise() };
+            obs.update(&mut st, rot(0.0, meas), 0.0, 1.0, 0.0, 0.0, 0.0);
+            let e = Dq { d: cmd.d - meas.d, q: cmd.q - meas.q };
+            integ = Dq { d: integ.d + ki_ts * e.d, q: integ.q + ki_ts * e.q };
+            let v = Dq { d: kp * e.d + integ.d, q: kp * e.q + integ.q };
+            obs.record(&mut st, rot(0.0, v), cmd);
+            i = Dq { d: i.d + (v.d - R * i.d) * TS / L, q: i.q + (v.q - R * i.q) * TS / L };
+            // After 0.5 s: R̂ settled.
+            if n >= 10_000 {
+                sum += st.r_hat_ohm - R;
+                worst = worst.max((st.r_hat_ohm - R).abs());
+                count += 1.0;
+            }
+        }
+        let mean = sum / count;
+        // 0.3 % of R is 5 mV of back-EMF at 1.9 A: 0.004 rad of load angle at the first
+        // resonance of the patent motor (1.27 V).
+        assert!(mean.abs() < 0.003 * R, "R̂ biased by {:+.3} % by sensor noise", 100.0 * mean / R);
+        assert!(worst < 0.01 * R, "R̂ wanders {:.2} % with sensor noise", 100.0 * worst / R);
     }
 
     #[test]
