@@ -250,16 +250,7 @@ pub fn summary(motor: &Profile, rows: &[SweepRow]) -> String {
         "resonance speeds ω_n/(k·Nr): {}",
         markers.iter().map(|m| format!("{} {:.2} rad/s", m.label, m.x)).collect::<Vec<_>>().join(", ")
     );
-    let mut modes: Vec<&str> = Vec::new();
-    let mut comps: Vec<&str> = Vec::new();
-    for r in rows {
-        if !modes.contains(&r.mode) {
-            modes.push(r.mode);
-        }
-        if !comps.contains(&r.compensation) {
-            comps.push(r.compensation);
-        }
-    }
+    let (modes, comps) = crate::plot::modes_and_compensations(rows);
     for mode in modes {
         let _ = writeln!(s, "{mode}: velocity error over {:.2}..{:.2} rad/s", first_speed(rows), last_speed(rows));
         let lane = |comp: &str| -> Vec<&SweepRow> {

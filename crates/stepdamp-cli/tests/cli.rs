@@ -8,6 +8,13 @@ fn stepdamp(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_stepdamp")).args(args).output().expect("runs")
 }
 
+/// `stepdamp` with the words of `args` (split at spaces) followed by `--out out`.
+fn stepdamp_out(args: &str, out: &Path) -> Output {
+    let mut all: Vec<&str> = args.split_whitespace().collect();
+    all.extend(["--out", out.to_str().expect("temporary paths are UTF-8")]);
+    stepdamp(&all)
+}
+
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
@@ -34,24 +41,10 @@ fn files_in(dir: &Path) -> Vec<String> {
 fn sweep_writes_the_table_and_both_plots() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("o");
-    let o = stepdamp(&[
-        "--quiet",
-        "sweep",
-        "--mode",
-        "open-loop",
-        "--compensation",
-        "off,patent,estimated",
-        "--from",
-        "4",
-        "--to",
-        "9",
-        "--points",
-        "3",
-        "--duration",
-        "0.3",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = stepdamp_out(
+        "--quiet sweep --mode open-loop --compensation off,patent,estimated --from 4 --to 9 --points 3 --duration 0.3",
+        &out,
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(files_in(&out), ["sweep.csv", "sweep.png", "sweep.svg"]);
     let table = std::fs::read_to_string(out.join("sweep.csv")).unwrap();
@@ -212,24 +205,10 @@ fn estimated_compensation_is_open_loop_only() {
     // In a sweep of both modes it runs in open loop only, and says so on one line.
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("o");
-    let o = stepdamp(&[
-        "--quiet",
-        "sweep",
-        "--mode",
-        "both",
-        "--compensation",
-        "off,estimated",
-        "--from",
-        "5",
-        "--to",
-        "9",
-        "--points",
-        "2",
-        "--duration",
-        "0.3",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = stepdamp_out(
+        "--quiet sweep --mode both --compensation off,estimated --from 5 --to 9 --points 2 --duration 0.3",
+        &out,
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     let err = stderr(&o);
     assert_eq!(err.lines().count(), 1, "{err}");
@@ -282,23 +261,7 @@ fn without_quiet_a_sweep_not_on_a_terminal_prints_no_progress_bar() {
     // The test's stdout and stderr are pipes, not terminals.
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("o");
-    let o = stepdamp(&[
-        "sweep",
-        "--mode",
-        "open-loop",
-        "--compensation",
-        "off",
-        "--from",
-        "5",
-        "--to",
-        "9",
-        "--points",
-        "2",
-        "--duration",
-        "0.3",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = stepdamp_out("sweep --mode open-loop --compensation off --from 5 --to 9 --points 2 --duration 0.3", &out);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(o.stderr.is_empty(), "stderr: {:?}", stderr(&o));
     let stdout = String::from_utf8_lossy(&o.stdout);

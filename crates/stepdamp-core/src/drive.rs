@@ -239,14 +239,10 @@ pub fn step(cfg: &Config, st: &mut State, m: &Measurement) -> Output {
 fn sensor_fault(cfg: &Config, st: &mut State, theta_cmd: Position, theta_fb: Position) -> Output {
     st.integral_d_v = 0.0;
     st.integral_q_v = 0.0;
-    if cfg.observer.is_some() {
+    if let Some(obs) = &cfg.observer {
         // Its current and voltage history is broken: restart it on the next good sample,
         // keeping what it learnt of the motor.
-        let (r_hat_ohm, km_hat) = (st.observer.r_hat_ohm, st.observer.km_hat);
-        let mut fresh = ObserverState::default();
-        fresh.r_hat_ohm = r_hat_ohm;
-        fresh.km_hat = km_hat;
-        st.observer = fresh;
+        obs.restart(&mut st.observer);
     }
     st.command.advance();
     Output {

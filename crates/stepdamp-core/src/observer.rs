@@ -274,17 +274,22 @@ impl LoadAngleObserver {
             && st.km_hat.is_finite()
             && st.km_hat > 0.0)
         {
-            // Restart the filters, but keep what was learnt of the motor if it is sound:
-            // the standstill trim of R̂ cannot be redone while the motor runs.
-            let keep = |x: f32, nominal: f32| if x.is_finite() && x > 0.0 { x } else { nominal };
-            *st = ObserverState {
-                started: false,
-                r_hat_ohm: keep(st.r_hat_ohm, self.r_ohm),
-                km_hat: keep(st.km_hat, self.km),
-                ..ObserverState::default()
-            };
+            self.restart(st);
         }
         st.delta_rad
+    }
+
+    /// Restarts the filters and the histories (a broken sample or voltage history), but
+    /// keeps what was learnt of the motor if it is sound: the standstill trim of `R̂` cannot
+    /// be redone while the motor runs. An unsound `R̂` or `K̂m` falls back to the configured
+    /// value.
+    pub fn restart(&self, st: &mut ObserverState) {
+        let keep = |x: f32, nominal: f32| if x.is_finite() && x > 0.0 { x } else { nominal };
+        *st = ObserverState {
+            r_hat_ohm: keep(st.r_hat_ohm, self.r_ohm),
+            km_hat: keep(st.km_hat, self.km),
+            ..ObserverState::default()
+        };
     }
 
     /// Records the voltage computed in this period (after limiting) and the current

@@ -287,14 +287,10 @@ pub fn plan(base: &Profile, o: &PlanOptions) -> Result<Plan, PlanError> {
     })
 }
 
-/// Seed of run `index` from the base seed (SplitMix64): deterministic, independent of the
-/// number of threads. The same mixing as the sweep's lane seeds in `stepdamp-sim`, which
-/// keeps its function private (so this copy stays; use the sim's once it is exported).
+/// Seed of run `index` from the base seed: [`stepdamp_sim::sweep::derived_seed`], the same
+/// mixing as the sweep's lanes (deterministic, independent of the number of threads).
 pub fn run_seed(base: u64, index: u64) -> u64 {
-    let mut z = base.wrapping_add(index.wrapping_add(1).wrapping_mul(0x9E37_79B9_7F4A_7C15));
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
+    stepdamp_sim::sweep::derived_seed(base, index)
 }
 
 /// Simulates one planned run of `motor` (the simulated plant) with a servo controller

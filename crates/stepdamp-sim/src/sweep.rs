@@ -141,30 +141,33 @@ pub fn sweep(
         }
     }
     let pwm = motor.drive.pwm_hz;
-    let rows = lanes
+    lanes
         .par_iter()
         .enumerate()
         .map(|(i, &(mode, comp, cfg, w))| {
-            let opts = SimOptions { seed: lane_seed(spec.options.seed, i as u64), ..spec.options };
-            let mut lp = ClosedLoop::with_config(motor, cfg, &opts).expect("checked by validate");
+            let opts = SimOptions { seed: derived_seed(spec.options.seed, i as u64), ..spec.options };
+            // `validate` accepted this set-up; an error here would still be reported, not
+            // panicked on.
+            let mut lp = ClosedLoop::with_config(motor, cfg, &opts)?;
             let m = run(&mut lp, &RunSpec { speed_rad_s: w, ..spec.run }, pwm, |_, _| {});
             tick();
-            SweepRow {
+            Ok(SweepRow {
                 mode: mode_name(mode),
                 compensation: compensation_name(comp),
                 speed_cmd_rad_s: w,
                 vel_err_rms_rad_s: m.vel_err_rms_rad_s,
                 vel_err_pp_rad_s: m.vel_err_pp_rad_s,
                 lost_sync: m.lost_sync,
-            }
+            })
         })
-        .collect();
-    Ok(rows)
+        .collect()
 }
 
-/// SplitMix64 of the base seed and the lane index.
-fn lane_seed(base: u64, lane: u64) -> u64 {
-    let mut z = base.wrapping_add(lane.wrapping_add(1).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+/// The seed of run `index` of a batch with seed `base` (SplitMix64 of the two): deterministic
+/// and independent of the number of threads. Sweeps seed their lanes with it, and so do
+/// the identification runs of `stepdamp-identify`.
+pub fn derived_seed(base: u64, index: u64) -> u64 {
+    let mut z = base.wrapping_add(index.wrapping_add(1).wrapping_mul(0x9E37_79B9_7F4A_7C15));
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
