@@ -21,16 +21,7 @@
 #define VDC 48.0f
 #define CPR 4000
 
-/* Two RL windings with back-EMF from a rotor that follows the command exactly. The
- * exponential and sin/cos are the library's (sd_ref_*): the Rust plant uses the same
- * libm, so both plants compute the same bits. */
-typedef struct {
-    float i_a, i_b;
-    float decay; /* exp(-R Ts / L) */
-    float gain;  /* (1 - decay) / R: current a constant volt adds over one period */
-} plant;
-
-static plant plant_new(float ts) {
+plant plant_new(float ts) {
     plant p;
     p.i_a = 0.0f;
     p.i_b = 0.0f;
@@ -39,7 +30,7 @@ static plant plant_new(float ts) {
     return p;
 }
 
-static int plant_advance(plant *p, const sd_config *cfg, const sd_output *o, int64_t theta, float omega) {
+int plant_advance(plant *p, const sd_config *cfg, const sd_output *o, int64_t theta, float omega) {
     float ua, ub, s, c;
     if (sd_winding_voltages_per_vdc(cfg, o, &ua, &ub) != SD_OK) return 1;
     if (sd_ref_sincosf(sd_position_electrical_angle_rad(theta), &s, &c) != SD_OK) return 1;
@@ -51,10 +42,9 @@ static int plant_advance(plant *p, const sd_config *cfg, const sd_output *o, int
     return 0;
 }
 
-/* Raw encoder counter of a rotor at theta (units of 2^-32 electrical rev): floor to whole
- * counts, wrapping like a timer. Exact for every int64 (Rust computes it in i128):
- * theta = q*U + r with 0 <= r < U = NR*2^32, so floor(theta*CPR/U) = q*CPR + r*CPR/U. */
-static uint32_t encoder_count(int64_t theta) {
+/* Exact for every int64 (Rust computes it in i128): theta = q*U + r with 0 <= r < U =
+ * NR*2^32, so floor(theta*CPR/U) = q*CPR + floor(r*CPR/U). */
+uint32_t encoder_count(int64_t theta) {
     const int64_t units_per_rev = (int64_t)NR << 32;
     int64_t q = theta / units_per_rev;
     int64_t r = theta % units_per_rev;
@@ -86,9 +76,13 @@ void format_e4(char *buf, unsigned size, float x) {
     char *e = strchr(tmp, 'e');
     if (e == NULL) { snprintf(buf, size, "%s", tmp); return; }
     *e = '\0';
+    /* The exponent as printf writes it: a sign and at least two digits. */
+    const char *digit = e + 1;
+    int negative = *digit == '-';
+    if (*digit == '-' || *digit == '+') digit++;
     int exponent = 0;
-    sscanf(e + 1, "%d", &exponent);
-    snprintf(buf, size, "%se%d", tmp, exponent);
+    while (*digit >= '0' && *digit <= '9') exponent = 10 * exponent + (*digit++ - '0');
+    snprintf(buf, size, "%se%s%d", tmp, negative ? "-" : "", exponent);
 }
 
 static int fail(const char *what, unsigned n) {
