@@ -89,12 +89,12 @@ unsafe fn config_ref<'a>(cfg: *const sd_config) -> Result<&'a Config, sd_status>
     Ok(unsafe { &(*slot).config })
 }
 
-/// The state in `*st`, or the status why it cannot be used.
+/// The state slot at `st` after the NULL, alignment and tag checks.
 ///
 /// # Safety
-/// `st` is NULL or points to `SD_STATE_SIZE` writable bytes not aliased during the call.
+/// `st` is NULL or points to `SD_STATE_SIZE` readable bytes.
 #[allow(unsafe_code)]
-unsafe fn state_mut<'a>(st: *mut sd_state) -> Result<&'a mut State, sd_status> {
+unsafe fn state_slot(st: *const sd_state) -> Result<*const StateSlot, sd_status> {
     if st.is_null() {
         return Err(SD_ERR_NULL_POINTER);
     }
@@ -102,14 +102,35 @@ unsafe fn state_mut<'a>(st: *mut sd_state) -> Result<&'a mut State, sd_status> {
     if !slot.is_aligned() {
         return Err(SD_ERR_MISALIGNED);
     }
-    // SAFETY: non-NULL, aligned, SD_STATE_SIZE bytes by the caller's promise.
+    // SAFETY: non-NULL, aligned, SD_STATE_SIZE bytes by the caller's promise; any bit
+    // pattern is a valid u64.
     let tag = unsafe { core::ptr::addr_of!((*slot).tag).read() };
     if tag != STATE_TAG {
         return Err(SD_ERR_NOT_INITIALIZED);
     }
-    // SAFETY: the tag is only written by `sd_state_init` together with a valid `State`;
-    // the caller promises no aliasing during the call.
-    Ok(unsafe { &mut (*slot).state })
+    Ok(slot)
+}
+
+/// The state in `*st` for reading, or the status why it cannot be used.
+///
+/// # Safety
+/// `st` is NULL or points to `SD_STATE_SIZE` readable bytes.
+#[allow(unsafe_code)]
+unsafe fn state_ref<'a>(st: *const sd_state) -> Result<&'a State, sd_status> {
+    // SAFETY: forwarded caller contract; the tag is only written by `sd_state_init`
+    // together with a valid `State`.
+    unsafe { state_slot(st).map(|slot| &(*slot).state) }
+}
+
+/// The state in `*st` for writing, or the status why it cannot be used.
+///
+/// # Safety
+/// `st` is NULL or points to `SD_STATE_SIZE` writable bytes not aliased during the call.
+#[allow(unsafe_code)]
+unsafe fn state_mut<'a>(st: *mut sd_state) -> Result<&'a mut State, sd_status> {
+    // SAFETY: as `state_ref`; the pointer came in as `*mut` (writable) and the caller
+    // promises no aliasing during the call.
+    unsafe { state_slot(st).map(|slot| &mut (*slot.cast_mut()).state) }
 }
 
 /// Fills `*out` with the parameters of the reference `patent-motor` (Km 0.3 N·m/A, Nr 50,
@@ -259,8 +280,8 @@ pub unsafe extern "C" fn sd_step(
 #[allow(unsafe_code)]
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn sd_state_read(st: *const sd_state, out: *mut sd_state_info) -> sd_status {
-    // SAFETY: forwarded caller contract (read only: the `&mut` is not written through).
-    let st: &State = match unsafe { state_mut(st.cast_mut()) } {
+    // SAFETY: forwarded caller contract.
+    let st = match unsafe { state_ref(st) } {
         Ok(s) => s,
         Err(e) => return e,
     };
