@@ -1,0 +1,247 @@
+//! Conversions between the C structs and the core's types, and status codes and texts.
+//! Safe code only: the pointer handling stays in `lib.rs`.
+
+use core::ffi::CStr;
+
+use stepdamp_core::{
+    Compensation, Config, ConfigError, DriveSettings, Harmonic, Mode, MotorModel, Output, PATENT_MOTOR_DETENT, Params,
+    ServoGains, Topology,
+};
+
+use crate::types::*;
+
+/// `PATENT_MOTOR_DETENT` in C layout (what `sd_params_patent_motor` points to).
+static PATENT_DETENT_C: [sd_harmonic; PATENT_MOTOR_DETENT.len()] = {
+    let mut t = [sd_harmonic { order: 0, amplitude_nm: 0.0, phase_rad: 0.0 }; PATENT_MOTOR_DETENT.len()];
+    let mut i = 0;
+    while i < t.len() {
+        let h = PATENT_MOTOR_DETENT[i];
+        t[i] = sd_harmonic { order: h.order, amplitude_nm: h.amplitude_nm, phase_rad: h.phase_rad };
+        i += 1;
+    }
+    t
+};
+
+pub(crate) fn mode_from_c(m: sd_mode) -> Result<Mode, sd_status> {
+    match m {
+        SD_MODE_OPEN_LOOP => Ok(Mode::OpenLoop),
+        SD_MODE_SERVO => Ok(Mode::Servo),
+        _ => Err(SD_ERR_INVALID_MODE),
+    }
+}
+
+fn mode_to_c(m: Mode) -> sd_mode {
+    match m {
+        Mode::OpenLoop => SD_MODE_OPEN_LOOP,
+        Mode::Servo => SD_MODE_SERVO,
+    }
+}
+
+pub(crate) fn compensation_from_c(c: sd_compensation) -> Result<Compensation, sd_status> {
+    match c {
+        SD_COMPENSATION_OFF => Ok(Compensation::Off),
+        SD_COMPENSATION_PATENT => Ok(Compensation::Patent),
+        SD_COMPENSATION_ESTIMATED => Ok(Compensation::Estimated),
+        _ => Err(SD_ERR_INVALID_COMPENSATION),
+    }
+}
+
+fn compensation_to_c(c: Compensation) -> sd_compensation {
+    match c {
+        Compensation::Off => SD_COMPENSATION_OFF,
+        Compensation::Patent => SD_COMPENSATION_PATENT,
+        Compensation::Estimated => SD_COMPENSATION_ESTIMATED,
+    }
+}
+
+fn topology_from_c(t: sd_topology) -> Result<Topology, sd_status> {
+    match t {
+        SD_TOPOLOGY_THREE_LEG => Ok(Topology::ThreeLeg),
+        SD_TOPOLOGY_TWO_H_BRIDGE => Ok(Topology::TwoHBridge),
+        _ => Err(SD_ERR_INVALID_TOPOLOGY),
+    }
+}
+
+fn topology_to_c(t: Topology) -> sd_topology {
+    match t {
+        Topology::ThreeLeg => SD_TOPOLOGY_THREE_LEG,
+        Topology::TwoHBridge => SD_TOPOLOGY_TWO_H_BRIDGE,
+    }
+}
+
+/// The core's parameters from the C ones; `harmonics` (already bounds-checked) is copied
+/// into `table`, which the result borrows.
+pub(crate) fn params_from_c<'t>(
+    p: &sd_params,
+    harmonics: &[sd_harmonic],
+    table: &'t mut [Harmonic; SD_MAX_HARMONICS as usize],
+) -> Result<Params<'t>, sd_status> {
+    let n = harmonics.len().min(table.len());
+    for (dst, h) in table.iter_mut().zip(harmonics) {
+        *dst = Harmonic { order: h.order, amplitude_nm: h.amplitude_nm, phase_rad: h.phase_rad };
+    }
+    let (m, d, s) = (&p.motor, &p.drive, &p.servo);
+    Ok(Params {
+        motor: MotorModel {
+            km_nm_per_a: m.km_nm_per_a,
+            pole_pairs: m.pole_pairs,
+            resistance_ohm: m.resistance_ohm,
+            inductance_h: m.inductance_h,
+            coulomb_friction_nm: m.coulomb_friction_nm,
+            detent: table.get(..n).unwrap_or(&[]),
+        },
+        drive: DriveSettings {
+            bus_voltage_v: d.bus_voltage_v,
+            pwm_hz: d.pwm_hz,
+            holding_current_a: d.holding_current_a,
+            current_limit_a: d.current_limit_a,
+            current_loop_bandwidth_hz: d.current_loop_bandwidth_hz,
+            topology: topology_from_c(d.topology)?,
+            computation_delay_periods: d.computation_delay_periods,
+        },
+        encoder_counts_per_rev: p.encoder_counts_per_rev,
+        servo: ServoGains {
+            velocity_nm_s_per_rad: s.velocity_nm_s_per_rad,
+            position_nm_per_rad: s.position_nm_per_rad,
+            position_integral_nm_per_rad_s: s.position_integral_nm_per_rad_s,
+            velocity_filter_hz: s.velocity_filter_hz,
+        },
+        mode: mode_from_c(p.mode)?,
+        compensation: compensation_from_c(p.compensation)?,
+    })
+}
+
+/// `Params::patent_motor(mode, compensation)` in C layout.
+pub(crate) fn patent_motor_c(mode: sd_mode, compensation: sd_compensation) -> Result<sd_params, sd_status> {
+    let p = Params::patent_motor(mode_from_c(mode)?, compensation_from_c(compensation)?);
+    let (m, d, s) = (&p.motor, &p.drive, &p.servo);
+    Ok(sd_params {
+        motor: sd_motor {
+            km_nm_per_a: m.km_nm_per_a,
+            pole_pairs: m.pole_pairs,
+            resistance_ohm: m.resistance_ohm,
+            inductance_h: m.inductance_h,
+            coulomb_friction_nm: m.coulomb_friction_nm,
+            detent: PATENT_DETENT_C.as_ptr(),
+            detent_count: PATENT_DETENT_C.len() as u32,
+        },
+        drive: sd_drive {
+            bus_voltage_v: d.bus_voltage_v,
+            pwm_hz: d.pwm_hz,
+            holding_current_a: d.holding_current_a,
+            current_limit_a: d.current_limit_a,
+            current_loop_bandwidth_hz: d.current_loop_bandwidth_hz,
+            topology: topology_to_c(d.topology),
+            computation_delay_periods: d.computation_delay_periods,
+        },
+        encoder_counts_per_rev: p.encoder_counts_per_rev,
+        servo: sd_servo {
+            velocity_nm_s_per_rad: s.velocity_nm_s_per_rad,
+            position_nm_per_rad: s.position_nm_per_rad,
+            position_integral_nm_per_rad_s: s.position_integral_nm_per_rad_s,
+            velocity_filter_hz: s.velocity_filter_hz,
+        },
+        mode: mode_to_c(p.mode),
+        compensation: compensation_to_c(p.compensation),
+    })
+}
+
+pub(crate) fn from_output(o: &Output) -> sd_output {
+    let s = &o.signals;
+    sd_output {
+        duties: o.duties.0,
+        theta_cmd: s.theta_cmd.0,
+        theta_fb: s.theta_fb.0,
+        omega_fb_rad_s: s.omega_fb_rad_s,
+        i_d_a: s.i_dq.d,
+        i_q_a: s.i_dq.q,
+        i_d_cmd_a: s.i_dq_cmd.d,
+        i_q_cmd_a: s.i_dq_cmd.q,
+        v_a_v: s.v_ab.a,
+        v_b_v: s.v_ab.b,
+        voltage_scale: s.voltage_scale,
+    }
+}
+
+pub(crate) fn config_info(cfg: &Config) -> sd_config_info {
+    sd_config_info {
+        period_s: cfg.period_s(),
+        max_speed_rad_s: cfg.max_speed_rad_s(),
+        bus_voltage_v: cfg.bus_voltage_v(),
+        pole_pairs: cfg.pole_pairs(),
+        legs: cfg.topology().legs() as u32,
+        mode: mode_to_c(cfg.mode()),
+        topology: topology_to_c(cfg.topology()),
+    }
+}
+
+/// The status of a core configuration error: one code per parameter the core names.
+pub(crate) fn status_of(e: &ConfigError) -> sd_status {
+    match e {
+        ConfigError::HarmonicOrder { .. } => SD_ERR_HARMONIC_ORDER,
+        ConfigError::DuplicateHarmonic { .. } => SD_ERR_DUPLICATE_HARMONIC,
+        ConfigError::Invalid { field, .. } => match *field {
+            "motor.km_nm_per_a" => SD_ERR_KM,
+            "motor.pole_pairs" => SD_ERR_POLE_PAIRS,
+            "motor.resistance_ohm" => SD_ERR_RESISTANCE,
+            "motor.inductance_h" => SD_ERR_INDUCTANCE,
+            "motor.coulomb_friction_nm" => SD_ERR_COULOMB_FRICTION,
+            "drive.bus_voltage_v" => SD_ERR_BUS_VOLTAGE,
+            "drive.pwm_hz" => SD_ERR_PWM_FREQUENCY,
+            "drive.current_limit_a" => SD_ERR_CURRENT_LIMIT,
+            "drive.holding_current_a" => SD_ERR_HOLDING_CURRENT,
+            "drive.current_loop_bandwidth_hz" => SD_ERR_CURRENT_LOOP_BANDWIDTH,
+            "drive.computation_delay_periods" => SD_ERR_COMPUTATION_DELAY,
+            "encoder.counts_per_rev" => SD_ERR_ENCODER_COUNTS,
+            "servo.velocity_nm_s_per_rad" => SD_ERR_SERVO_VELOCITY_GAIN,
+            "servo.position_nm_per_rad" => SD_ERR_SERVO_POSITION_GAIN,
+            "servo.position_integral_nm_per_rad_s" => SD_ERR_SERVO_INTEGRAL_GAIN,
+            "servo.velocity_filter_hz" => SD_ERR_SERVO_VELOCITY_FILTER,
+            "detent.amplitude_nm" => SD_ERR_DETENT_AMPLITUDE,
+            "detent.phase_rad" => SD_ERR_DETENT_PHASE,
+            _ => SD_ERR_INVALID_PARAMETER,
+        },
+    }
+}
+
+/// Every status code with its text (one home: `sd_status_str` and the tests read it).
+pub(crate) const STATUS_TEXTS: [(sd_status, &CStr); 31] = [
+    (SD_OK, c"ok"),
+    (SD_ERR_NULL_POINTER, c"a pointer argument is NULL"),
+    (SD_ERR_NOT_INITIALIZED, c"sd_config/sd_state not initialised (or its initialisation failed)"),
+    (SD_ERR_MISALIGNED, c"sd_config/sd_state not aligned to 8 bytes"),
+    (SD_ERR_INVALID_MODE, c"mode is not an SD_MODE_* value"),
+    (SD_ERR_INVALID_COMPENSATION, c"compensation is not an SD_COMPENSATION_* value"),
+    (SD_ERR_INVALID_TOPOLOGY, c"drive.topology is not an SD_TOPOLOGY_* value"),
+    (SD_ERR_DETENT_COUNT_BEYOND_CAPACITY, c"motor.detent_count exceeds SD_MAX_HARMONICS"),
+    (SD_ERR_DETENT_NULL_WITH_COUNT, c"motor.detent is NULL but motor.detent_count > 0"),
+    (SD_ERR_DETENT_POINTER_WITHOUT_COUNT, c"motor.detent is not NULL but motor.detent_count is 0"),
+    (SD_ERR_HARMONIC_ORDER, c"a detent harmonic order is outside 1..=SD_MAX_HARMONIC_ORDER"),
+    (SD_ERR_DUPLICATE_HARMONIC, c"a detent harmonic order is given more than once"),
+    (SD_ERR_KM, c"motor.km_nm_per_a must be finite and > 0"),
+    (SD_ERR_POLE_PAIRS, c"motor.pole_pairs must be in 1..=1024"),
+    (SD_ERR_RESISTANCE, c"motor.resistance_ohm must be finite and > 0"),
+    (SD_ERR_INDUCTANCE, c"motor.inductance_h must be finite and > 0"),
+    (SD_ERR_COULOMB_FRICTION, c"motor.coulomb_friction_nm must be finite and >= 0"),
+    (SD_ERR_BUS_VOLTAGE, c"drive.bus_voltage_v must be finite and > 0"),
+    (SD_ERR_PWM_FREQUENCY, c"drive.pwm_hz must be finite and > 0"),
+    (SD_ERR_CURRENT_LIMIT, c"drive.current_limit_a must be finite and > 0"),
+    (SD_ERR_HOLDING_CURRENT, c"drive.holding_current_a must be finite, >= 0 and <= drive.current_limit_a"),
+    (SD_ERR_CURRENT_LOOP_BANDWIDTH, c"drive.current_loop_bandwidth_hz must be finite, > 0 and below pwm_hz/4"),
+    (SD_ERR_COMPUTATION_DELAY, c"drive.computation_delay_periods must be 0 or 1"),
+    (SD_ERR_ENCODER_COUNTS, c"encoder_counts_per_rev must be in 1..=1048576"),
+    (SD_ERR_SERVO_VELOCITY_GAIN, c"servo.velocity_nm_s_per_rad must be finite and >= 0"),
+    (SD_ERR_SERVO_POSITION_GAIN, c"servo.position_nm_per_rad must be finite and >= 0"),
+    (SD_ERR_SERVO_INTEGRAL_GAIN, c"servo.position_integral_nm_per_rad_s must be finite and >= 0"),
+    (SD_ERR_SERVO_VELOCITY_FILTER, c"servo.velocity_filter_hz must be finite and > 0"),
+    (SD_ERR_DETENT_AMPLITUDE, c"a detent amplitude is negative, not finite, or too large for Km"),
+    (SD_ERR_DETENT_PHASE, c"a detent phase is not finite"),
+    (SD_ERR_INVALID_PARAMETER, c"a parameter was rejected (no dedicated code in this version)"),
+];
+
+pub(crate) fn status_text(s: sd_status) -> &'static CStr {
+    STATUS_TEXTS.iter().find(|(code, _)| *code == s).map_or(c"unknown status", |(_, t)| t)
+}
+
+#[cfg(test)]
+mod tests;
