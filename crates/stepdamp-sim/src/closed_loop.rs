@@ -26,6 +26,8 @@ pub fn compensation_name(c: Compensation) -> &'static str {
         Compensation::Off => "off",
         Compensation::Patent => "patent",
         Compensation::Estimated => "estimated",
+        Compensation::Angle => "angle",
+        Compensation::Table => "table",
     }
 }
 
