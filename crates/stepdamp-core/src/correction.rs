@@ -103,7 +103,14 @@ pub fn angle_law(holding_current_a: f32, series_a: f32) -> Dq {
 /// `full_scale` counts are `holding_current_a`, Park-transformed at `θ_cmd` given
 /// `(sin θe, cos θe)`.
 #[inline]
-pub fn table_law(table: &CorrectionTable, tick: usize, speed_rad_s: f32, holding_current_a: f32, sin: f32, cos: f32) -> Dq {
+pub fn table_law(
+    table: &CorrectionTable,
+    tick: usize,
+    speed_rad_s: f32,
+    holding_current_a: f32,
+    sin: f32,
+    cos: f32,
+) -> Dq {
     let rows = if speed_rad_s < 0.0 { &table.backward } else { &table.forward };
     let [a, b] = rows[tick % TABLE_TICKS];
     let scale = holding_current_a / f32::from(table.full_scale.max(1));

@@ -166,13 +166,26 @@ pub fn check_mode_compensation(mode: Mode, comp: Compensation) -> Result<(), Sim
 
 /// Builds the core controller's configuration from a profile.
 pub fn controller_config(p: &Profile, mode: Mode, comp: Compensation) -> Result<Config, ConfigError> {
+    with_params(p, mode, comp, |params| Config::new(params))
+}
+
+/// [`controller_config`] with [`Compensation::Table`] replaying `table`.
+pub fn controller_config_with_table(
+    p: &Profile,
+    mode: Mode,
+    table: &stepdamp_core::CorrectionTable,
+) -> Result<Config, ConfigError> {
+    with_params(p, mode, Compensation::Table, |params| Config::with_table(params, table))
+}
+
+fn with_params<R>(p: &Profile, mode: Mode, comp: Compensation, f: impl FnOnce(&Params<'_>) -> R) -> R {
     let detent: Vec<Harmonic> = p
         .motor
         .detent
         .iter()
         .map(|h| Harmonic { order: h.order, amplitude_nm: h.amplitude_nm as f32, phase_rad: h.phase_rad as f32 })
         .collect();
-    Config::new(&Params {
+    f(&Params {
         motor: MotorModel {
             km_nm_per_a: p.motor.km_nm_per_a as f32,
             pole_pairs: p.motor.pole_pairs,

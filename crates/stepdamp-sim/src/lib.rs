@@ -28,7 +28,7 @@ pub mod sweep;
 
 pub use closed_loop::{
     ClosedLoop, Compensation, ESTIMATED_IS_OPEN_LOOP_ONLY, PeriodRecord, SimError, SimOptions, check_mode_compensation,
-    check_same_hardware, compensation_name, controller_config, mode_name,
+    check_same_hardware, compensation_name, controller_config, controller_config_with_table, mode_name,
 };
 pub use plant::{PlantParams, PlantState};
 pub use profile::{PRESETS, Profile, ProfileError};
