@@ -18,6 +18,7 @@
 //! winding **a** on the driver's coil **B** (the cosine coil: `CUR_B`, Prusa's `b`) and
 //! winding **b** on coil **A** (the sine coil). See `docs/exporters.md`.
 
+pub mod c_header;
 pub mod model;
 pub mod predict;
 pub mod prusa;

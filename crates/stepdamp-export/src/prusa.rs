@@ -314,8 +314,8 @@ mod tests {
             })
             .collect();
         assert_eq!(pairs.len(), 17);
-        for n in 0..ITEMS {
-            assert_eq!(pairs[n], (c.forward.mag[n], c.forward.pha[n]));
+        for (n, pair) in pairs.iter().enumerate() {
+            assert_eq!(*pair, (c.forward.mag[n], c.forward.pha[n]));
         }
         let back = parse_m972(&format!("ok\n{}ok\n", m972_text(&c, 'X')), None, "m972").unwrap();
         for n in 0..ITEMS {

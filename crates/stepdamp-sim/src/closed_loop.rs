@@ -166,7 +166,7 @@ pub fn check_mode_compensation(mode: Mode, comp: Compensation) -> Result<(), Sim
 
 /// Builds the core controller's configuration from a profile.
 pub fn controller_config(p: &Profile, mode: Mode, comp: Compensation) -> Result<Config, ConfigError> {
-    with_params(p, mode, comp, |params| Config::new(params))
+    with_params(p, mode, comp, Config::new)
 }
 
 /// [`controller_config`] with [`Compensation::Table`] replaying `table`.
