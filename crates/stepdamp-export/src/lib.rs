@@ -48,3 +48,35 @@ pub enum ExportError {
     #[error("prediction: {0}")]
     Sim(String),
 }
+
+/// A replay table read from a file, and what it was.
+pub fn load_table(
+    bytes: &[u8],
+    what: &str,
+    axis: Option<char>,
+) -> Result<(stepdamp_core::CorrectionTable, &'static str), ExportError> {
+    if bytes.len() == prusa::FILE_BYTES && bytes[..32].iter().all(|&b| b == 0) {
+        let s = prusa::decode_file(bytes, what)?;
+        return Ok((
+            prusa::PrusaCorrection { forward: s, backward: s }.table(),
+            "Prusa correction file (both directions)",
+        ));
+    }
+    let text = std::str::from_utf8(bytes).map_err(|_| ExportError::Parse {
+        what: what.to_string(),
+        reason: format!("neither a {}-byte Prusa correction file nor text", prusa::FILE_BYTES),
+    })?;
+    if text.contains("driver_MSLUT0") {
+        return Ok((tmc::table(&tmc::parse_klipper(text, what)?), "Klipper Trinamic microstep table"));
+    }
+    if text.lines().any(|l| l.trim().starts_with("M973 ")) {
+        return Ok((prusa::parse_m973(text, axis, what)?.table(), "Prusa M973 lines"));
+    }
+    if text.lines().any(|l| l.split(',').count() == 5) {
+        return Ok((prusa::parse_m972(text, axis, what)?.table(), "Prusa M972 output"));
+    }
+    Err(ExportError::Parse {
+        what: what.to_string(),
+        reason: "not a Prusa correction file, M973/M972 text or a Klipper block with driver_MSLUT0…".into(),
+    })
+}

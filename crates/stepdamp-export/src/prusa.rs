@@ -15,6 +15,8 @@
 
 use crate::{Correction, ExportError};
 use stepdamp_core::{CorrectionTable, TABLE_TICKS};
+use stepdamp_sim::Profile;
+use stepdamp_sim::profile::DetentTerm;
 
 /// Items in a Prusa spectrum (`CORRECTION_HARMONICS + 1`).
 pub const ITEMS: usize = 17;
@@ -262,6 +264,97 @@ pub fn to_detent(s: &Spectrum, km_nm_per_a: f64, current_a: f64) -> (Vec<(u16, f
     (terms, f64::from(s.mag[0]) * f64::from(s.pha[0]).sin())
 }
 
+/// Parses `M973 <axis><F|B><mag>,<pha> …` lines (as the firmware's `parse_pairs` reads
+/// them: pairs separated by one space; missing items are zero). Both directions must be
+/// given; `axis` picks one when several are present.
+pub fn parse_m973(text: &str, axis: Option<char>, what: &str) -> Result<PrusaCorrection, ExportError> {
+    let mut out = PrusaCorrection::default();
+    let mut seen = [false; 2];
+    let mut axis_seen = axis;
+    for (no, line) in text.lines().enumerate() {
+        let Some(rest) = line.trim().strip_prefix("M973 ") else { continue };
+        let bad = |reason: String| ExportError::Parse { what: format!("{what}:{}", no + 1), reason };
+        let mut chars = rest.chars();
+        let (ax, dir) = (chars.next().unwrap_or(' '), chars.next().unwrap_or(' '));
+        if !matches!(ax, 'X' | 'Y') || !matches!(dir, 'F' | 'B') {
+            return Err(bad(format!("{rest:?}: expected <X|Y><F|B> then mag,pha pairs")));
+        }
+        match axis_seen {
+            None => axis_seen = Some(ax),
+            Some(a) if a != ax => {
+                if axis.is_none() {
+                    return Err(bad(format!("axes {a} and {ax} both present: choose one with --axis")));
+                }
+                continue;
+            }
+            _ => {}
+        }
+        let mut s = Spectrum::default();
+        let pairs: Vec<&str> = chars.as_str().trim().split(' ').filter(|p| !p.is_empty()).collect();
+        if pairs.len() > ITEMS {
+            return Err(bad(format!("{} pairs: at most {ITEMS}", pairs.len())));
+        }
+        for (n, p) in pairs.iter().enumerate() {
+            let (m, ph) = p.split_once(',').ok_or_else(|| bad(format!("{p:?}: expected mag,pha")))?;
+            let num = |v: &str| {
+                v.parse::<f32>()
+                    .ok()
+                    .filter(|x| x.is_finite())
+                    .ok_or_else(|| bad(format!("{v:?} is not a finite number")))
+            };
+            s.mag[n] = num(m)?;
+            s.pha[n] = num(ph)?;
+        }
+        let d = usize::from(dir == 'B');
+        seen[d] = true;
+        if d == 0 {
+            out.forward = s;
+        } else {
+            out.backward = s;
+        }
+    }
+    if let Some(d) = seen.iter().position(|s| !s) {
+        return Err(ExportError::Parse {
+            what: what.to_string(),
+            reason: format!("no M973 line for direction {}", if d == 0 { 'F' } else { 'B' }),
+        });
+    }
+    Ok(out)
+}
+
+/// A profile equal to `base` with the detent model a Prusa correction stands for, at
+/// holding current `current_a`: each order's phasor `mag·e^{i·pha}` averaged over the two
+/// directions (a detent torque does not depend on the direction; what differs between
+/// the directions is returned as the largest phasor difference, rad, for the user to see).
+pub fn import_profile(base: &Profile, c: &PrusaCorrection, current_a: f64) -> Result<(Profile, f64), ExportError> {
+    if !(current_a.is_finite() && current_a > 0.0) {
+        return Err(ExportError::Invalid(format!("--current {current_a} A: must be finite and > 0")));
+    }
+    let mut avg = Spectrum::default();
+    let mut spread: f64 = 0.0;
+    for n in 0..ITEMS {
+        let (f, b) = (&c.forward, &c.backward);
+        let (fx, fy) =
+            (f64::from(f.mag[n]) * f64::from(f.pha[n]).cos(), f64::from(f.mag[n]) * f64::from(f.pha[n]).sin());
+        let (bx, by) =
+            (f64::from(b.mag[n]) * f64::from(b.pha[n]).cos(), f64::from(b.mag[n]) * f64::from(b.pha[n]).sin());
+        spread = spread.max((fx - bx).hypot(fy - by));
+        let (x, y) = ((fx + bx) / 2.0, (fy + by) / 2.0);
+        avg.mag[n] = x.hypot(y) as f32;
+        avg.pha[n] = y.atan2(x) as f32;
+    }
+    let (terms, _) = to_detent(&avg, base.motor.km_nm_per_a, current_a);
+    let mut p = base.clone();
+    p.name = format!("{} (Prusa correction)", base.name);
+    p.motor.detent = terms
+        .into_iter()
+        .map(|(order, amplitude_nm, phase_rad)| DetentTerm { order, amplitude_nm, phase_rad })
+        .collect();
+    p.drive.holding_current_a = current_a.min(p.drive.current_limit_a);
+    p.validate(&p.name).map_err(|e| ExportError::Invalid(e.to_string()))?;
+    Ok((p, spread))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -365,6 +458,21 @@ mod tests {
         let mut big = patent();
         big.holding_current_a = 0.1;
         assert!(Spectrum::from_correction(&big).unwrap_err().to_string().contains("int8"));
+    }
+
+    #[test]
+    fn m973_lines_parse_back_and_import_gives_the_profile_again() {
+        let c = PrusaCorrection::from_correction(&patent()).unwrap();
+        let back = parse_m973(&c.m973('X'), None, "g").unwrap();
+        assert_eq!(back, c);
+        let base = Profile::preset("patent-motor").unwrap();
+        let (p, spread) = import_profile(&base, &back, 1.9).unwrap();
+        assert_eq!(spread, 0.0);
+        for h in &base.motor.detent {
+            let g = p.motor.detent.iter().find(|g| g.order == h.order).unwrap();
+            assert!((g.amplitude_nm - h.amplitude_nm).abs() < 1e-7 && (g.phase_rad - h.phase_rad).abs() < 1e-6);
+        }
+        assert!(parse_m973("M973 XF0.1,0.2\n", None, "g").unwrap_err().to_string().contains("direction B"));
     }
 
     #[test]

@@ -338,6 +338,69 @@ impl std::fmt::Display for TmcExport {
     }
 }
 
+/// Parses a Klipper TMC section's `driver_MSLUT0` … `driver_START_SIN90` lines (`:` or
+/// `=`; comments after `#` or `;`); every register must be present.
+pub fn parse_klipper(text: &str, what: &str) -> Result<TmcRegisters, ExportError> {
+    let mut v: std::collections::HashMap<String, u64> = std::collections::HashMap::new();
+    for (no, line) in text.lines().enumerate() {
+        let line = line.split(['#', ';']).next().unwrap_or("").trim();
+        let Some((k, val)) = line.split_once([':', '=']) else { continue };
+        let k = k.trim();
+        if let Some(name) = k.strip_prefix("driver_") {
+            let val = val.trim();
+            let n: u64 = val.parse().map_err(|_| ExportError::Parse {
+                what: format!("{what}:{}", no + 1),
+                reason: format!("{k} = {val:?}: expected a non-negative integer"),
+            })?;
+            v.insert(name.to_uppercase(), n);
+        }
+    }
+    let get = |name: &str, max: u64| -> Result<u64, ExportError> {
+        let x = *v.get(name).ok_or_else(|| ExportError::Parse {
+            what: what.to_string(),
+            reason: format!("driver_{name} is missing"),
+        })?;
+        if x > max {
+            return Err(ExportError::Parse {
+                what: what.to_string(),
+                reason: format!("driver_{name} = {x}: at most {max}"),
+            });
+        }
+        Ok(x)
+    };
+    let mut r = TmcRegisters::KLIPPER_DEFAULT;
+    for i in 0..8 {
+        r.mslut[i] = get(&format!("MSLUT{i}"), u64::from(u32::MAX))? as u32;
+    }
+    for i in 0..4 {
+        r.w[i] = get(&format!("W{i}"), 3)? as u8;
+    }
+    for i in 0..3 {
+        r.x[i] = get(&format!("X{}", i + 1), 255)? as u8;
+    }
+    r.start_sin = get("START_SIN", 255)? as u8;
+    r.start_sin90 = get("START_SIN90", 255)? as u8;
+    Ok(r)
+}
+
+/// The Klipper config block for a stepper (`section` such as `tmc5160 stepper_x`).
+pub fn klipper_block(e: &TmcExport, section: &str, name: &str) -> String {
+    let mut s = format!("# Microstep table from stepdamp (profile \"{name}\").\n");
+    for o in &e.coverage {
+        s += &format!(
+            "#   order {}: {}\n",
+            o.order,
+            if o.expressible {
+                format!("{:.1} dB of its ripple removed", o.reduction_db())
+            } else {
+                "not expressible".into()
+            }
+        );
+    }
+    s += &format!("[{section}]\n");
+    s + &e.registers.klipper_lines()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -392,6 +455,16 @@ mod tests {
         let mut c = patent();
         c.terms = vec![(4, 0.05, std::f64::consts::FRAC_PI_2)];
         assert!(matches!(export(&c), Err(ExportError::NothingFits(_))));
+    }
+
+    #[test]
+    fn klipper_block_parses_back_to_the_registers() {
+        let e = export(&patent()).unwrap();
+        let text = klipper_block(&e, "tmc5160 stepper_x", "patent-motor");
+        assert!(text.contains("[tmc5160 stepper_x]\ndriver_MSLUT0: "));
+        assert_eq!(parse_klipper(&text, "cfg").unwrap(), e.registers);
+        let cut: String = text.lines().filter(|l| !l.starts_with("driver_W2")).map(|l| format!("{l}\n")).collect();
+        assert!(parse_klipper(&cut, "cfg").unwrap_err().to_string().contains("driver_W2 is missing"));
     }
 
     #[test]

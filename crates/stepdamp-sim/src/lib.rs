@@ -33,7 +33,7 @@ pub use closed_loop::{
 pub use plant::{PlantParams, PlantState};
 pub use profile::{PRESETS, Profile, ProfileError};
 pub use scenario::{MAX_SPEED_RAD_S, RunMetrics, RunSpec, SETTLE_S, check_speed, run};
-pub use sweep::{SweepRow, SweepSpec, linear_grid, sweep};
+pub use sweep::{SweepRow, SweepSpec, linear_grid, sweep, sweep_with_table};
 
 #[cfg(test)]
 mod tests;
