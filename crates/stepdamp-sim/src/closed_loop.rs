@@ -152,13 +152,21 @@ pub fn check_same_hardware(
 }
 
 /// Checks that `comp` exists in `mode`: estimated-angle compensation is an open-loop law
-/// (servo mode evaluates the compensation at the encoder angle).
+/// (servo mode evaluates the compensation at the encoder angle), and so are the drives'
+/// angle and table laws.
 pub fn check_mode_compensation(mode: Mode, comp: Compensation) -> Result<(), SimError> {
     if mode == Mode::Servo && comp == Compensation::Estimated {
         return Err(SimError::Unsupported {
             mode: mode_name(mode),
             comp: compensation_name(comp),
             reason: ESTIMATED_IS_OPEN_LOOP_ONLY,
+        });
+    }
+    if mode == Mode::Servo && matches!(comp, Compensation::Angle | Compensation::Table) {
+        return Err(SimError::Unsupported {
+            mode: mode_name(mode),
+            comp: compensation_name(comp),
+            reason: "angle and table are the open-loop laws of microstepping drives",
         });
     }
     Ok(())
