@@ -5,7 +5,7 @@ use crate::Global;
 use crate::common::{load_motor, write_atomic};
 use anyhow::{Context, Result, anyhow, bail};
 use std::path::{Path, PathBuf};
-use stepdamp_core::Compensation;
+use stepdamp_core::{Compensation, Mode};
 use stepdamp_export::{Correction, c_header, predict, prusa, simplefoc, tmc};
 
 /// Target format.
@@ -122,12 +122,15 @@ pub fn run_export(a: ExportArgs, _g: &Global) -> Result<()> {
         }
     };
     if a.duration > 0.0 {
-        let cfg = predict::config(&scaled, comp, table.as_ref())?;
-        let name = match comp {
-            Compensation::Table => "table",
-            _ => "patent (q-current feed-forward)",
+        // SimpleFOC runs on its sensor: servo mode; the others microstep in open loop.
+        let (mode, name) = match (a.format, comp) {
+            (Format::Simplefoc, _) => (Mode::Servo, "servo, patent q-current feed-forward"),
+            (_, Compensation::Table) => (Mode::OpenLoop, "open loop, table replay"),
+            _ => (Mode::OpenLoop, "open loop, patent q-current feed-forward"),
         };
-        let pr = predict::predict(&scaled, &[(name.to_string(), cfg)], a.duration)?;
+        let off = predict::config_in(&scaled, mode, Compensation::Off, None)?;
+        let cfg = predict::config_in(&scaled, mode, comp, table.as_ref())?;
+        let pr = predict::predict_against(&scaled, off, &[(name.to_string(), cfg)], a.duration)?;
         out!("{}", pr[0]);
     }
     Ok(())

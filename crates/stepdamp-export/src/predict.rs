@@ -72,18 +72,37 @@ fn pp(p: &Profile, cfg: Config, speed: f64, duration_s: f64) -> Result<f64, Expo
 
 /// The open-loop controller of `p` with `comp`; `table` for [`Compensation::Table`].
 pub fn config(p: &Profile, comp: Compensation, table: Option<&CorrectionTable>) -> Result<Config, ExportError> {
+    config_in(p, Mode::OpenLoop, comp, table)
+}
+
+/// [`config`] in `mode` (servo for a drive that runs on its encoder, as SimpleFOC does).
+pub fn config_in(
+    p: &Profile,
+    mode: Mode,
+    comp: Compensation,
+    table: Option<&CorrectionTable>,
+) -> Result<Config, ExportError> {
     let cfg = match (comp, table) {
-        (Compensation::Table, Some(t)) => stepdamp_sim::controller_config_with_table(p, Mode::OpenLoop, t),
+        (Compensation::Table, Some(t)) => stepdamp_sim::controller_config_with_table(p, mode, t),
         (Compensation::Table, None) => return Err(ExportError::Invalid("table compensation needs a table".into())),
-        _ => controller_config(p, Mode::OpenLoop, comp),
+        _ => controller_config(p, mode, comp),
     };
     cfg.map_err(|e| ExportError::Sim(e.to_string()))
 }
 
-/// Predicts each compensation in `comps` against none, on `p`, at every detent order's
+/// Predicts each compensation in `comps` against none (open loop), on `p`, at every detent order's
 /// resonance; runs of `duration_s` (≥ 1 s is what the figures use).
 pub fn predict(p: &Profile, comps: &[(String, Config)], duration_s: f64) -> Result<Vec<Prediction>, ExportError> {
-    let off = config(p, Compensation::Off, None)?;
+    predict_against(p, config(p, Compensation::Off, None)?, comps, duration_s)
+}
+
+/// [`predict`] against the baseline controller `off` (e.g. servo mode without compensation).
+pub fn predict_against(
+    p: &Profile,
+    off: Config,
+    comps: &[(String, Config)],
+    duration_s: f64,
+) -> Result<Vec<Prediction>, ExportError> {
     let mut orders = p.detent_orders();
     orders.sort_unstable_by(|a, b| b.cmp(a));
     let mut jobs: Vec<(usize, u16, f64)> = Vec::new(); // (config index, order, speed)
