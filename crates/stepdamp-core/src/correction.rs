@@ -152,6 +152,42 @@ mod tests {
     }
 
     #[test]
+    fn config_refuses_a_table_law_without_a_table_or_in_servo_mode() {
+        use crate::{Compensation, Config, ConfigError, Mode, Params};
+        let p = Params::patent_motor(Mode::OpenLoop, Compensation::Table);
+        assert!(matches!(Config::new(&p), Err(ConfigError::Invalid { field: "compensation", .. })));
+        let t = CorrectionTable { full_scale: 248, ..Default::default() };
+        assert!(Config::with_table(&p, &t).is_ok());
+        for c in [Compensation::Angle, Compensation::Table] {
+            let servo = Params::patent_motor(Mode::Servo, c);
+            assert!(matches!(Config::with_table(&servo, &t), Err(ConfigError::Invalid { field: "compensation", .. })));
+        }
+        // 248 counts are I_hold = 1.9 A; 500 counts are 3.8 A, beyond the 3 A limit.
+        let mut big = t;
+        big.forward[3] = [500, 0];
+        assert!(matches!(Config::with_table(&p, &big), Err(ConfigError::Invalid { field: "table", .. })));
+        let zero = CorrectionTable { full_scale: 0, ..Default::default() };
+        assert!(Config::with_table(&p, &zero).is_err());
+    }
+
+    #[test]
+    fn step_in_table_mode_commands_the_tables_reference() {
+        use crate::{Compensation, Config, Measurement, Mode, Params, State, step};
+        let p = Params::patent_motor(Mode::OpenLoop, Compensation::Table);
+        let mut t = CorrectionTable { full_scale: 248, ..Default::default() };
+        // Tick 0 only: the reference is half the holding current on winding b (q at θe = 0).
+        t.forward[0] = [0, 124];
+        let cfg = Config::with_table(&p, &t).unwrap();
+        let mut st = State::default();
+        let out = step(&cfg, &mut st, &Measurement::default());
+        assert!(
+            (out.signals.i_dq_cmd.q - 0.95).abs() < 1e-6 && out.signals.i_dq_cmd.d.abs() < 1e-6,
+            "{:?}",
+            out.signals
+        );
+    }
+
+    #[test]
     fn a_plain_sine_table_gives_the_holding_current_on_d() {
         let mut t = CorrectionTable { full_scale: 248, ..Default::default() };
         for n in 0..TABLE_TICKS {

@@ -475,6 +475,22 @@ mod tests {
         assert!(parse_m973("M973 XF0.1,0.2\n", None, "g").unwrap_err().to_string().contains("direction B"));
     }
 
+    proptest::proptest! {
+        #[test]
+        fn any_finite_spectrum_round_trips_through_file_and_m973(
+            mag in proptest::collection::vec(-1.0f32..1.0, ITEMS),
+            pha in proptest::collection::vec(-4.0f32..4.0, ITEMS),
+        ) {
+            let mut s = Spectrum::default();
+            s.mag.copy_from_slice(&mag);
+            s.pha.copy_from_slice(&pha);
+            let bytes = encode_file(&s);
+            proptest::prop_assert_eq!(encode_file(&decode_file(&bytes, "t").unwrap()), bytes);
+            let c = PrusaCorrection { forward: s, backward: s };
+            proptest::prop_assert_eq!(parse_m973(&c.m973('Y'), None, "g").unwrap(), c);
+        }
+    }
+
     #[test]
     fn import_inverts_export() {
         let c = patent();

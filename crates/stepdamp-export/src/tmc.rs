@@ -467,6 +467,29 @@ mod tests {
         assert!(parse_klipper(&cut, "cfg").unwrap_err().to_string().contains("driver_W2 is missing"));
     }
 
+    proptest::proptest! {
+        #[test]
+        fn any_encodable_fourth_order_decodes_to_its_quarter_wave(a in 0.002f64..0.06, ph in -3.1f64..3.1) {
+            let mut c = patent();
+            c.terms = vec![(4, a, ph)];
+            match export(&c) {
+                Ok(e) => {
+                    let q = e.registers.decode();
+                    proptest::prop_assert_eq!(encode(&q).unwrap(), e.registers);
+                    let eps = a * ph.cos() / c.holding_current_a;
+                    for (x, &v) in q.iter().enumerate() {
+                        let phi = TAU * x as f64 / 1024.0;
+                        let want = 248.0 * (phi.sin() + eps / 2.0 * ((3.0 * phi).sin() + (5.0 * phi).sin()));
+                        proptest::prop_assert_eq!(v, want.round() as i32);
+                    }
+                }
+                // Refused only when the sine part is below a quarter count.
+                Err(ExportError::NothingFits(_)) => proptest::prop_assert!((a * ph.cos() / c.holding_current_a).abs() * 248.0 < 0.25),
+                Err(e) => proptest::prop_assert!(false, "{e}"),
+            }
+        }
+    }
+
     #[test]
     fn steps_outside_the_widths_are_refused() {
         let mut q = [0i32; 257];
