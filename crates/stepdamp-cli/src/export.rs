@@ -130,8 +130,16 @@ pub fn run_export(a: ExportArgs, _g: &Global) -> Result<()> {
         };
         let off = predict::config_in(&scaled, mode, Compensation::Off, None)?;
         let cfg = predict::config_in(&scaled, mode, comp, table.as_ref())?;
-        let pr = predict::predict_against(&scaled, off, &[(name.to_string(), cfg)], a.duration)?;
-        out!("{}", pr[0]);
+        let mut comps = vec![(name.to_string(), cfg)];
+        if a.format == Format::KlipperTmc {
+            // What the coverage report predicts: the continuous angle law carrying exactly
+            // the part of the model the table can hold (the table's rounding aside).
+            let covered = predict::config(&tmc::covered_profile(&scaled), Compensation::Angle, None)?;
+            comps.push(("open loop, angle law on the covered part only".to_string(), covered));
+        }
+        for p in predict::predict_against(&scaled, off, &comps, a.duration)? {
+            out!("{p}");
+        }
     }
     Ok(())
 }

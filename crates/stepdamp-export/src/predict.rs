@@ -38,7 +38,7 @@ pub struct Prediction {
 
 impl std::fmt::Display for Prediction {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        writeln!(f, "predicted p-p velocity error at each resonance (simulated, {} compensation):", self.compensation)?;
+        writeln!(f, "predicted p-p velocity error at each resonance (simulated: {}):", self.compensation)?;
         for r in &self.rows {
             writeln!(
                 f,
