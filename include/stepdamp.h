@@ -25,12 +25,13 @@
 #define SD_MAX_HARMONIC_ORDER 32
 
 /**
- * Bytes of an `sd_config`. The configuration uses 440 bytes today (on x86-64 and
- * Cortex-M alike: no pointers inside); the rest is headroom for a later correction table
- * (e.g. 256 `float`s of a per-microstep angle table) without changing what C allocates.
- * A test keeps at least half of it free.
+ * Bytes of an `sd_config`. The configuration uses about 8.6 kB today (on x86-64 and
+ * Cortex-M alike: no pointers inside), 8,192 B of it the drive-replay correction table of
+ * the `table` law (1024 ticks × 2 windings × 2 directions × `int16_t`); the rest is
+ * headroom so the layout can grow without changing what C allocates. A test keeps at
+ * least a quarter of it free.
  */
-#define SD_CONFIG_SIZE 2048
+#define SD_CONFIG_SIZE 16384
 
 /**
  * Bytes of an `sd_state` (168 used today), with headroom like `SD_CONFIG_SIZE`.
@@ -550,6 +551,18 @@ typedef struct sd_config_info {
  * Open loop: at the angle estimated by the load-angle observer. Servo: as PATENT.
  */
 #define SD_COMPENSATION_ESTIMATED 2
+
+/**
+ * Open loop: rotate the current vector by the correction angle Δ(θ_cmd) at constant
+ * magnitude (what Prusa's phase stepping and a microstep table do).
+ */
+#define SD_COMPENSATION_ANGLE 3
+
+/**
+ * Open loop: replay a drive's correction table. The C API has no way to pass the table
+ * yet, so `sd_config_init` refuses it (`SD_ERR_INVALID_PARAMETER`).
+ */
+#define SD_COMPENSATION_TABLE 4
 
 /**
  * Three legs with a shared leg γ: duties `[α, β, γ, 0]`.

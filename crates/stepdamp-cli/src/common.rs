@@ -30,7 +30,8 @@ pub fn parse_modes(s: &str) -> Result<Vec<Mode>> {
     Ok(out)
 }
 
-/// Parses a comma list of `off`, `patent` (alias `on`), `estimated`, or `both` (= `off,patent`).
+/// Parses a comma list of `off`, `patent` (alias `on`), `estimated`, `angle`, `table`, or
+/// `both` (= `off,patent`).
 pub fn parse_compensations(s: &str) -> Result<Vec<Compensation>> {
     let mut out = Vec::new();
     for part in s.split(',').map(str::trim) {
@@ -38,12 +39,14 @@ pub fn parse_compensations(s: &str) -> Result<Vec<Compensation>> {
             "off" => push_unique(&mut out, Compensation::Off),
             "patent" | "on" => push_unique(&mut out, Compensation::Patent),
             "estimated" => push_unique(&mut out, Compensation::Estimated),
+            "angle" => push_unique(&mut out, Compensation::Angle),
+            "table" => push_unique(&mut out, Compensation::Table),
             "both" => {
                 push_unique(&mut out, Compensation::Off);
                 push_unique(&mut out, Compensation::Patent);
             }
             _ => bail!(
-                "--compensation '{part}': expected off, patent (or on), estimated, or both (= off,patent); a comma list is allowed"
+                "--compensation '{part}': expected off, patent (or on), estimated, angle, table, or both (= off,patent); a comma list is allowed"
             ),
         }
     }

@@ -20,6 +20,7 @@ macro_rules! outln {
 }
 
 mod common;
+mod export;
 mod identify;
 mod motor;
 mod plot;
@@ -59,6 +60,10 @@ enum Command {
     Motor(motor::MotorCommand),
     /// Identify detent harmonics and friction from servo-mode logs.
     Identify(identify::IdentifyArgs),
+    /// Write a profile's correction for another drive (Prusa, Klipper/Trinamic, SimpleFOC, C).
+    Export(export::ExportArgs),
+    /// Read another drive's correction into a profile.
+    Import(export::ImportArgs),
 }
 
 fn main() {
@@ -90,6 +95,8 @@ fn main() {
         Command::Resonance(a) => motor::resonance(a, &global),
         Command::Motor(c) => motor::run(c, &global),
         Command::Identify(a) => identify::run(a, &global),
+        Command::Export(a) => export::run_export(a, &global),
+        Command::Import(a) => export::run_import(a, &global),
     };
     if let Err(e) = result {
         if common::is_stdout_closed(&e) {

@@ -69,8 +69,15 @@ pub fn run(a: SimulateArgs, _g: &Global) -> Result<()> {
     let ([mode], [comp]) = (modes.as_slice(), comps.as_slice()) else {
         bail!("simulate runs one mode and one compensation (got --mode {} --compensation {})", a.mode, a.compensation);
     };
-    check_mode_compensation(*mode, *comp)
-        .map_err(|_| anyhow!("--mode servo --compensation estimated: {ESTIMATED_IS_OPEN_LOOP_ONLY}"))?;
+    check_mode_compensation(*mode, *comp).map_err(|e| match comp {
+        stepdamp_sim::Compensation::Estimated => {
+            anyhow!("--mode servo --compensation estimated: {ESTIMATED_IS_OPEN_LOOP_ONLY}")
+        }
+        _ => anyhow!("--mode {} --compensation {}: {e}", a.mode, a.compensation),
+    })?;
+    if *comp == stepdamp_sim::Compensation::Table {
+        bail!("--compensation table replays a table file: use `stepdamp sweep --compensation table --table FILE`");
+    }
     if !a.speed.is_finite() || a.speed == 0.0 || a.speed.abs() > MAX_SPEED_RAD_S {
         bail!("--speed {}: must be a non-zero speed in rad/s, |speed| ≤ {MAX_SPEED_RAD_S}", a.speed);
     }

@@ -9,7 +9,7 @@ use std::time::Instant;
 use stepdamp_core::Mode;
 use stepdamp_sim::{
     Compensation, ESTIMATED_IS_OPEN_LOOP_ONLY, MAX_SPEED_RAD_S, Profile, RunSpec, SimError, SimOptions, SweepRow,
-    SweepSpec, linear_grid, sweep,
+    SweepSpec, linear_grid, sweep_with_table,
 };
 
 /// Arguments of `stepdamp sweep`.
@@ -54,6 +54,10 @@ pub struct SweepArgs {
     /// Seed of the noise generators.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Correction table replayed by `--compensation table`: a Prusa correction file, M973
+    /// lines or M972 output, or a Klipper block with driver_MSLUT0… (see `stepdamp export`).
+    #[arg(long, value_name = "FILE")]
+    pub table: Option<PathBuf>,
     /// Output directory: sweep.csv, sweep.svg, sweep.png.
     #[arg(long, default_value = "out")]
     pub out: PathBuf,
@@ -132,7 +136,16 @@ pub fn run(a: SweepArgs, g: &Global) -> Result<()> {
         None => (motor.clone(), a.motor.as_str()),
     };
     let spec = spec_of(&a)?;
-    spec.validate(&motor, &a.motor, &controller, controller_name).map_err(|e| match e {
+    let table = match &a.table {
+        Some(path) => {
+            let bytes = std::fs::read(path).with_context(|| format!("--table {}", path.display()))?;
+            let (t, kind) = stepdamp_export::load_table(&bytes, &path.display().to_string(), None)?;
+            eprintln!("note: --table {}: {kind}", path.display());
+            Some(t)
+        }
+        None => None,
+    };
+    spec.validate_with_table(&motor, &a.motor, &controller, controller_name, table.as_ref()).map_err(|e| match e {
         // The run's duration is the option's; the speeds are --from/--to.
         SimError::Option { what: "duration", reason } => anyhow!("--duration {reason}"),
         e => e.into(),
@@ -144,7 +157,7 @@ pub fn run(a: SweepArgs, g: &Global) -> Result<()> {
     let lanes = spec.runs();
     let pb = progress(lanes as u64, g.quiet, "sweep");
     let t0 = Instant::now();
-    let rows = sweep(&motor, &controller, &spec, &|| pb.inc(1))?;
+    let rows = sweep_with_table(&motor, &controller, &spec, table.as_ref(), &|| pb.inc(1))?;
     pb.finish_and_clear();
     let wall = t0.elapsed().as_secs_f64();
 

@@ -1,6 +1,7 @@
 //! Controller parameters (what a user sets) and the validated [`Config`] built from them
 //! once at start-up (what the 20 kHz step reads).
 
+use crate::correction::CorrectionTable;
 use crate::detent::{Harmonic, HarmonicSeries};
 use crate::encoder::Encoder;
 use crate::modulator::Topology;
@@ -112,6 +113,14 @@ pub enum Compensation {
     /// ([`crate::observer`]), divided by `cos δ̂` (the q axis of `θc` is `δ̂` off the
     /// rotor's). Servo mode: the same as `Patent` (the encoder is the best angle there).
     Estimated,
+    /// Open loop only: the holding-current vector rotated by `Δ(θ_cmd) = (1/(Km·I_hold))
+    /// Σ A sin(kθe + φ)` at constant magnitude, as Prusa's phase stepping and Trinamic
+    /// microstep tables do ([`crate::correction::angle_law`]).
+    Angle,
+    /// Open loop only: reference coil currents replayed from an integer
+    /// [`CorrectionTable`] as the drive would ([`crate::correction::table_law`]); build the
+    /// configuration with [`Config::with_table`].
+    Table,
 }
 
 /// Detent harmonics of the `patent-motor` (design.md §6–§7).
@@ -249,6 +258,10 @@ pub struct Config {
     pub(crate) inv_bus_voltage: f32,
     /// Largest commanded speed magnitude, rad/s (see [`Config::max_speed_rad_s`]).
     pub(crate) max_speed_rad_s: f32,
+    /// Which compensation law (the open-loop step picks the angle and table laws by it).
+    pub(crate) compensation_kind: Compensation,
+    /// Replayed reference currents ([`Compensation::Table`] only; zeros otherwise).
+    pub(crate) table: CorrectionTable,
 }
 
 /// Largest advance of the commanded electrical angle per control period, in turns: a
@@ -290,8 +303,32 @@ fn non_negative(field: &'static str, v: f32) -> Result<f32, ConfigError> {
 }
 
 impl Config {
-    /// Validates `p` and precomputes everything the step needs.
+    /// Validates `p` and precomputes everything the step needs. [`Compensation::Table`]
+    /// needs its table: use [`Config::with_table`].
     pub fn new(p: &Params<'_>) -> Result<Config, ConfigError> {
+        if p.compensation == Compensation::Table {
+            return Err(ConfigError::Invalid {
+                field: "compensation",
+                value: 0.0,
+                reason: "table compensation needs a correction table: build with Config::with_table",
+            });
+        }
+        Self::build(p)
+    }
+
+    /// [`Config::new`] for [`Compensation::Table`] (any other compensation ignores the
+    /// table): the table's `full_scale` must be > 0 and its largest entry, scaled to the
+    /// holding current, within the current limit.
+    pub fn with_table(p: &Params<'_>, table: &CorrectionTable) -> Result<Config, ConfigError> {
+        let mut cfg = Self::build(p)?;
+        if p.compensation == Compensation::Table {
+            crate::correction::check_table(table, cfg.holding_current_a, cfg.current_limit_a)?;
+            cfg.table = *table;
+        }
+        Ok(cfg)
+    }
+
+    fn build(p: &Params<'_>) -> Result<Config, ConfigError> {
         let m = &p.motor;
         let d = &p.drive;
         let km = positive("motor.km_nm_per_a", m.km_nm_per_a)?;
@@ -344,6 +381,13 @@ impl Config {
                 field: "drive.computation_delay_periods",
                 value: f32::from(d.computation_delay_periods),
                 reason: "must be 0 or 1",
+            });
+        }
+        if p.mode == Mode::Servo && matches!(p.compensation, Compensation::Angle | Compensation::Table) {
+            return Err(ConfigError::Invalid {
+                field: "compensation",
+                value: 0.0,
+                reason: "angle and table compensation are open-loop laws (use patent in servo mode)",
             });
         }
         let on = p.compensation != Compensation::Off;
@@ -402,6 +446,8 @@ impl Config {
             inv_bus_voltage: 1.0 / vdc,
             max_speed_rad_s: (core::f64::consts::TAU * MAX_ELECTRICAL_TURN_PER_PERIOD
                 / (f64::from(m.pole_pairs) * f64::from(ts))) as f32,
+            compensation_kind: p.compensation,
+            table: CorrectionTable::default(),
         };
         cfg.check_finite(p)?;
         Ok(cfg)

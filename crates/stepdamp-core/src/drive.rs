@@ -1,7 +1,7 @@
 //! One control period of the drive: sample → Park → law → PI → inverse Park → modulator.
 
 use crate::angle::{MicrostepAccumulator, Position, UNITS_PER_ELECTRICAL_REV};
-use crate::config::{Config, Mode};
+use crate::config::{Compensation, Config, Mode};
 use crate::encoder::EncoderState;
 use crate::modulator::LegDuties;
 use crate::observer::ObserverState;
@@ -192,10 +192,21 @@ pub fn step(cfg: &Config, st: &mut State, m: &Measurement) -> Output {
         gain * (series + cfg.compensation_lead_s * omega_e * (slope + cfg.compensation_lead2_s * omega_e * curv));
 
     let i_dq_cmd = match cfg.mode {
-        Mode::OpenLoop => {
-            let q = cfg.open_loop_iq_limit_a;
-            Dq { d: cfg.holding_current_a, q: comp_a.max(-q).min(q) }
-        }
+        Mode::OpenLoop => match cfg.compensation_kind {
+            Compensation::Angle => crate::correction::angle_law(cfg.holding_current_a, comp_a),
+            Compensation::Table => crate::correction::table_law(
+                &cfg.table,
+                crate::correction::tick_of(theta_cmd),
+                st.speed_cmd_rad_s,
+                cfg.holding_current_a,
+                sin,
+                cos,
+            ),
+            _ => {
+                let q = cfg.open_loop_iq_limit_a;
+                Dq { d: cfg.holding_current_a, q: comp_a.max(-q).min(q) }
+            }
+        },
         Mode::Servo => servo_law(cfg, st, theta_cmd, theta_fb, comp_a),
     };
 

@@ -54,6 +54,7 @@
 
 pub mod angle;
 pub mod config;
+pub mod correction;
 pub mod detent;
 pub mod drive;
 pub mod encoder;
@@ -68,6 +69,7 @@ pub use config::{
     Compensation, Config, ConfigError, DriveSettings, MAX_ELECTRICAL_TURN_PER_PERIOD, Mode, MotorModel,
     PATENT_MOTOR_DETENT, Params, ServoGains,
 };
+pub use correction::{CorrectionTable, TABLE_TICKS};
 pub use detent::{Harmonic, HarmonicSeries, MAX_HARMONIC_ORDER};
 pub use drive::{CURRENT_SENSOR_FAULT_PERIODS, Measurement, Output, Signals, State, step};
 pub use modulator::{LegDuties, Topology};

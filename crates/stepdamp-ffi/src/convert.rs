@@ -42,6 +42,8 @@ pub(crate) fn compensation_from_c(c: sd_compensation) -> Result<Compensation, sd
         SD_COMPENSATION_OFF => Ok(Compensation::Off),
         SD_COMPENSATION_PATENT => Ok(Compensation::Patent),
         SD_COMPENSATION_ESTIMATED => Ok(Compensation::Estimated),
+        SD_COMPENSATION_ANGLE => Ok(Compensation::Angle),
+        SD_COMPENSATION_TABLE => Ok(Compensation::Table),
         _ => Err(SD_ERR_INVALID_COMPENSATION),
     }
 }
@@ -51,6 +53,8 @@ fn compensation_to_c(c: Compensation) -> sd_compensation {
         Compensation::Off => SD_COMPENSATION_OFF,
         Compensation::Patent => SD_COMPENSATION_PATENT,
         Compensation::Estimated => SD_COMPENSATION_ESTIMATED,
+        Compensation::Angle => SD_COMPENSATION_ANGLE,
+        Compensation::Table => SD_COMPENSATION_TABLE,
     }
 }
 

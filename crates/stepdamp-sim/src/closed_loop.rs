@@ -26,6 +26,8 @@ pub fn compensation_name(c: Compensation) -> &'static str {
         Compensation::Off => "off",
         Compensation::Patent => "patent",
         Compensation::Estimated => "estimated",
+        Compensation::Angle => "angle",
+        Compensation::Table => "table",
     }
 }
 
@@ -150,7 +152,8 @@ pub fn check_same_hardware(
 }
 
 /// Checks that `comp` exists in `mode`: estimated-angle compensation is an open-loop law
-/// (servo mode evaluates the compensation at the encoder angle).
+/// (servo mode evaluates the compensation at the encoder angle), and so are the drives'
+/// angle and table laws.
 pub fn check_mode_compensation(mode: Mode, comp: Compensation) -> Result<(), SimError> {
     if mode == Mode::Servo && comp == Compensation::Estimated {
         return Err(SimError::Unsupported {
@@ -159,18 +162,38 @@ pub fn check_mode_compensation(mode: Mode, comp: Compensation) -> Result<(), Sim
             reason: ESTIMATED_IS_OPEN_LOOP_ONLY,
         });
     }
+    if mode == Mode::Servo && matches!(comp, Compensation::Angle | Compensation::Table) {
+        return Err(SimError::Unsupported {
+            mode: mode_name(mode),
+            comp: compensation_name(comp),
+            reason: "angle and table are the open-loop laws of microstepping drives",
+        });
+    }
     Ok(())
 }
 
 /// Builds the core controller's configuration from a profile.
 pub fn controller_config(p: &Profile, mode: Mode, comp: Compensation) -> Result<Config, ConfigError> {
+    with_params(p, mode, comp, Config::new)
+}
+
+/// [`controller_config`] with [`Compensation::Table`] replaying `table`.
+pub fn controller_config_with_table(
+    p: &Profile,
+    mode: Mode,
+    table: &stepdamp_core::CorrectionTable,
+) -> Result<Config, ConfigError> {
+    with_params(p, mode, Compensation::Table, |params| Config::with_table(params, table))
+}
+
+fn with_params<R>(p: &Profile, mode: Mode, comp: Compensation, f: impl FnOnce(&Params<'_>) -> R) -> R {
     let detent: Vec<Harmonic> = p
         .motor
         .detent
         .iter()
         .map(|h| Harmonic { order: h.order, amplitude_nm: h.amplitude_nm as f32, phase_rad: h.phase_rad as f32 })
         .collect();
-    Config::new(&Params {
+    f(&Params {
         motor: MotorModel {
             km_nm_per_a: p.motor.km_nm_per_a as f32,
             pole_pairs: p.motor.pole_pairs,

@@ -28,12 +28,12 @@ pub mod sweep;
 
 pub use closed_loop::{
     ClosedLoop, Compensation, ESTIMATED_IS_OPEN_LOOP_ONLY, PeriodRecord, SimError, SimOptions, check_mode_compensation,
-    check_same_hardware, compensation_name, controller_config, mode_name,
+    check_same_hardware, compensation_name, controller_config, controller_config_with_table, mode_name,
 };
 pub use plant::{PlantParams, PlantState};
 pub use profile::{PRESETS, Profile, ProfileError};
 pub use scenario::{MAX_SPEED_RAD_S, RunMetrics, RunSpec, SETTLE_S, check_speed, run};
-pub use sweep::{SweepRow, SweepSpec, linear_grid, sweep};
+pub use sweep::{SweepRow, SweepSpec, linear_grid, sweep, sweep_with_table};
 
 #[cfg(test)]
 mod tests;

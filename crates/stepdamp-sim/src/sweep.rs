@@ -13,7 +13,7 @@ use crate::profile::Profile;
 use crate::scenario::{RunSpec, check_speed, run};
 use rayon::prelude::*;
 use serde::Serialize;
-use stepdamp_core::Mode;
+use stepdamp_core::{CorrectionTable, Mode};
 
 /// What to sweep.
 #[derive(Clone, Debug, PartialEq)]
@@ -88,6 +88,19 @@ impl SweepSpec {
         controller: &Profile,
         controller_name: &str,
     ) -> Result<(), SimError> {
+        self.validate_with_table(motor, motor_name, controller, controller_name, None)
+    }
+
+    /// [`SweepSpec::validate`] with the table that [`Compensation::Table`] lanes replay
+    /// (required when the compensations include it).
+    pub fn validate_with_table(
+        &self,
+        motor: &Profile,
+        motor_name: &str,
+        controller: &Profile,
+        controller_name: &str,
+        table: Option<&CorrectionTable>,
+    ) -> Result<(), SimError> {
         motor.validate(motor_name)?;
         controller.validate(controller_name)?;
         check_same_hardware(motor, motor_name, controller, controller_name)?;
@@ -114,7 +127,7 @@ impl SweepSpec {
         let lowest = self.speeds_rad_s.iter().copied().fold(f64::INFINITY, |a, w| a.min(w.abs()));
         RunSpec { speed_rad_s: lowest, ..self.run }.check(motor.drive.pwm_hz, nr)?;
         for (mode, comp) in self.pairs() {
-            let cfg = controller_config(controller, mode, comp)?;
+            let cfg = lane_config(controller, mode, comp, table)?;
             ClosedLoop::with_config(motor, cfg, &self.options)?;
         }
         Ok(())
@@ -131,11 +144,22 @@ pub fn sweep(
     spec: &SweepSpec,
     tick: &(dyn Fn() + Sync),
 ) -> Result<Vec<SweepRow>, SimError> {
+    sweep_with_table(motor, controller, spec, None, tick)
+}
+
+/// [`sweep`] with the table that [`Compensation::Table`] lanes replay.
+pub fn sweep_with_table(
+    motor: &Profile,
+    controller: &Profile,
+    spec: &SweepSpec,
+    table: Option<&CorrectionTable>,
+    tick: &(dyn Fn() + Sync),
+) -> Result<Vec<SweepRow>, SimError> {
     // Fail before the parallel part on any bad input.
-    spec.validate(motor, &motor.name, controller, &controller.name)?;
+    spec.validate_with_table(motor, &motor.name, controller, &controller.name, table)?;
     let mut lanes = Vec::new();
     for (mode, comp) in spec.pairs() {
-        let cfg = controller_config(controller, mode, comp)?;
+        let cfg = lane_config(controller, mode, comp, table)?;
         for &w in &spec.speeds_rad_s {
             lanes.push((mode, comp, cfg, w));
         }
@@ -161,6 +185,23 @@ pub fn sweep(
             })
         })
         .collect()
+}
+
+/// The controller of one lane: [`Compensation::Table`] replays `table` (an error without one).
+fn lane_config(
+    controller: &Profile,
+    mode: Mode,
+    comp: Compensation,
+    table: Option<&CorrectionTable>,
+) -> Result<stepdamp_core::Config, SimError> {
+    match (comp, table) {
+        (Compensation::Table, Some(t)) => Ok(crate::controller_config_with_table(controller, mode, t)?),
+        (Compensation::Table, None) => Err(SimError::Option {
+            what: "compensation",
+            reason: "table compensation needs a table (--table FILE)".to_string(),
+        }),
+        _ => Ok(controller_config(controller, mode, comp)?),
+    }
 }
 
 /// The seed of run `index` of a batch with seed `base` (SplitMix64 of the two): deterministic

@@ -22,7 +22,7 @@ fn patent_motor_in_c_layout_converts_back_to_the_cores_reference_params() {
 #[test]
 fn out_of_range_enum_integers_are_statuses() {
     assert_eq!(patent_motor_c(2, SD_COMPENSATION_OFF).unwrap_err(), SD_ERR_INVALID_MODE);
-    assert_eq!(patent_motor_c(SD_MODE_SERVO, 3).unwrap_err(), SD_ERR_INVALID_COMPENSATION);
+    assert_eq!(patent_motor_c(SD_MODE_SERVO, SD_COMPENSATION_TABLE + 1).unwrap_err(), SD_ERR_INVALID_COMPENSATION);
     let mut c = patent_motor_c(SD_MODE_SERVO, SD_COMPENSATION_OFF).unwrap();
     c.drive.topology = 7;
     let mut table = [Harmonic::default(); SD_MAX_HARMONICS as usize];
