@@ -24,6 +24,7 @@ mod identify;
 mod motor;
 mod plot;
 mod simulate;
+mod study;
 mod sweep;
 
 use clap::{Parser, Subcommand};
@@ -59,6 +60,8 @@ enum Command {
     Motor(motor::MotorCommand),
     /// Identify detent harmonics and friction from servo-mode logs.
     Identify(identify::IdentifyArgs),
+    /// Tolerance study: draw motor variants, sweep their resonances, report the spread.
+    Study(study::StudyArgs),
 }
 
 fn main() {
@@ -90,6 +93,7 @@ fn main() {
         Command::Resonance(a) => motor::resonance(a, &global),
         Command::Motor(c) => motor::run(c, &global),
         Command::Identify(a) => identify::run(a, &global),
+        Command::Study(a) => study::run(a, &global),
     };
     if let Err(e) = result {
         if common::is_stdout_closed(&e) {
