@@ -14,19 +14,31 @@ root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 venv="${VENV:-$root/target/python-ci/venv}"
 spec="${SPEC:-$root/python/examples/patent-motor-study.toml}"
 out="${OUT:-$root/out/study}"
-"$venv/bin/python" - "$spec" "$out" "$root/docs/study-cdf.png" "${SCHEDULER:-}" "${WORKERS:-2}" <<'PY'
+# Dask starts its worker processes by spawning: the driver must be an importable file
+# with a main guard, not standard input.
+driver=$(mktemp --suffix=.py)
+trap 'rm -f "$driver"' EXIT
+cat > "$driver" <<'PY'
 import sys
+
 import stepdamp
 
-spec, out, png, scheduler, workers = sys.argv[1:6]
-r = stepdamp.study(spec, scheduler=scheduler or None, n_workers=int(workers), threads_per_worker=1,
-                   chunk_size=25, out=out)
-r.plot_cdf(png, dpi=60)
-print(r.report)
-for p in r.summary["pairs"]:
-    print(f"{p['mode']} {p['compensation']}: ≥ {r.summary['threshold']:g}x at every resonance in "
-          f"{100 * p['share_hold_all']:.1f} % of variants")
-where = scheduler or f"LocalCluster, {workers} worker processes"
-print(f"{len(r.table)} variants in {r.wall_s:.1f} s wall: {r.variants_per_s:.2f} variants/s ({where})")
-print(f"wrote {out}/study.parquet, {out}/study-cdf.png, {out}/study-summary.json, {png}")
+
+def main():
+    spec, out, png, scheduler, workers = sys.argv[1:6]
+    r = stepdamp.study(spec, scheduler=scheduler or None, n_workers=int(workers), threads_per_worker=1,
+                       chunk_size=25, out=out)
+    r.plot_cdf(png, dpi=60)
+    print(r.report)
+    for p in r.summary["pairs"]:
+        print(f"{p['mode']} {p['compensation']}: ≥ {r.summary['threshold']:g}x at every resonance in "
+              f"{100 * p['share_hold_all']:.1f} % of variants")
+    where = scheduler or f"LocalCluster, {workers} worker processes"
+    print(f"{len(r.table)} variants in {r.wall_s:.1f} s wall: {r.variants_per_s:.2f} variants/s ({where})")
+    print(f"wrote {out}/study.parquet, {out}/study-cdf.png, {out}/study-summary.json, {png}")
+
+
+if __name__ == "__main__":
+    main()
 PY
+"$venv/bin/python" "$driver" "$spec" "$out" "$root/docs/study-cdf.png" "${SCHEDULER:-}" "${WORKERS:-2}"
