@@ -25,6 +25,7 @@ mod identify;
 mod motor;
 mod plot;
 mod simulate;
+mod study;
 mod sweep;
 
 use clap::{Parser, Subcommand};
@@ -64,6 +65,8 @@ enum Command {
     Export(export::ExportArgs),
     /// Read another drive's correction into a profile.
     Import(export::ImportArgs),
+    /// Tolerance study: draw motor variants, sweep their resonances, report the spread.
+    Study(study::StudyArgs),
 }
 
 fn main() {
@@ -97,6 +100,7 @@ fn main() {
         Command::Identify(a) => identify::run(a, &global),
         Command::Export(a) => export::run_export(a, &global),
         Command::Import(a) => export::run_import(a, &global),
+        Command::Study(a) => study::run(a, &global),
     };
     if let Err(e) = result {
         if common::is_stdout_closed(&e) {

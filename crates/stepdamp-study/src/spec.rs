@@ -1,0 +1,441 @@
+//! The study specification (TOML) and its validation.
+//!
+//! ```toml
+//! motor = "patent-motor"      # preset or profile file (relative to the spec file)
+//! variants = 1000
+//! seed = 1
+//! controller = "nominal"      # the controller's model: "nominal" (the profile above) or "plant"
+//!
+//! [sweep]                     # what each variant runs (all optional)
+//! modes = ["open-loop"]
+//! compensations = ["off", "patent", "estimated"]
+//! orders = [4, 2, 1]          # resonances to measure (default: the profile's detent orders)
+//! points = 3                  # speeds per resonance, evenly over ±span around it
+//! span = 0.1                  # relative half-width of that window
+//! duration_s = 1.0
+//!
+//! [plant]                     # distributions of the simulated motor's parameters
+//! resistance_ohm = { scale = [0.9, 1.1] }
+//! inertia_kg_m2 = { scale = [0.8, 1.5] }
+//! detent_amplitude_nm = { scale = [0.8, 1.2] }   # each harmonic drawn on its own
+//! detent_phase_rad = { add = [-0.2, 0.2] }
+//! load_torque_nm = { uniform = [0.0, 0.01] }
+//!
+//! [controller_error]          # identification error of the controller's model, on top
+//! detent_amplitude_nm = { scale = [0.95, 1.05] }
+//! ```
+
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+use stepdamp_core::Mode;
+use stepdamp_sim::{Compensation, Profile, compensation_name, mode_name};
+
+/// A distribution of one parameter. Uniform draws; `scale` multiplies the nominal value,
+/// `add` adds to it, `uniform` replaces it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum Dist {
+    /// Nominal × U(lo, hi) (0 < lo ≤ hi).
+    Scale([f64; 2]),
+    /// Nominal + U(lo, hi) (lo ≤ hi), in the parameter's unit.
+    Add([f64; 2]),
+    /// U(lo, hi) (lo ≤ hi), in the parameter's unit, whatever the nominal value.
+    Uniform([f64; 2]),
+}
+
+impl Dist {
+    /// The value for nominal `x` and a uniform draw `u` in `[0, 1)`.
+    pub fn apply(&self, x: f64, u: f64) -> f64 {
+        let lerp = |[lo, hi]: [f64; 2]| lo + (hi - lo) * u;
+        match *self {
+            Dist::Scale(r) => x * lerp(r),
+            Dist::Add(r) => x + lerp(r),
+            Dist::Uniform(r) => lerp(r),
+        }
+    }
+
+    fn check(&self, key: &str) -> Result<(), String> {
+        let (name, [lo, hi]) = match *self {
+            Dist::Scale(r) => ("scale", r),
+            Dist::Add(r) => ("add", r),
+            Dist::Uniform(r) => ("uniform", r),
+        };
+        if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
+            return Err(format!("{key} = {{ {name} = [{lo}, {hi}] }}: the bounds must be finite with lo ≤ hi"));
+        }
+        if name == "scale" && lo <= 0.0 {
+            return Err(format!("{key} = {{ scale = [{lo}, {hi}] }}: a scale factor must be > 0"));
+        }
+        Ok(())
+    }
+}
+
+/// Distributions of the parameters a study varies (absent = held at the nominal value).
+/// Keys are the profile's `[motor]` keys; `detent_*` apply to every harmonic, each drawn
+/// on its own.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Variation {
+    /// Phase resistance `R`, Ω.
+    pub resistance_ohm: Option<Dist>,
+    /// Phase inductance `L`, H.
+    pub inductance_h: Option<Dist>,
+    /// Torque constant `Km`, N·m/A.
+    pub km_nm_per_a: Option<Dist>,
+    /// Rotor + load inertia `J`, kg·m².
+    pub inertia_kg_m2: Option<Dist>,
+    /// Coulomb friction `Fs`, N·m.
+    pub coulomb_friction_nm: Option<Dist>,
+    /// Viscous friction `D`, N·m·s/rad.
+    pub viscous_nm_s_per_rad: Option<Dist>,
+    /// Each detent amplitude `A_k`, N·m.
+    pub detent_amplitude_nm: Option<Dist>,
+    /// Each detent phase `φ_k`, rad.
+    pub detent_phase_rad: Option<Dist>,
+    /// Constant load torque opposing the motion, N·m (plant only; nominal 0).
+    pub load_torque_nm: Option<Dist>,
+}
+
+impl Variation {
+    /// The distributions in draw order, with their keys (this order fixes what each
+    /// variant's random numbers mean: never reorder).
+    pub fn scalar_entries(&self) -> [(&'static str, Option<Dist>); 6] {
+        [
+            ("resistance_ohm", self.resistance_ohm),
+            ("inductance_h", self.inductance_h),
+            ("km_nm_per_a", self.km_nm_per_a),
+            ("inertia_kg_m2", self.inertia_kg_m2),
+            ("coulomb_friction_nm", self.coulomb_friction_nm),
+            ("viscous_nm_s_per_rad", self.viscous_nm_s_per_rad),
+        ]
+    }
+
+    /// True when nothing is varied.
+    pub fn is_empty(&self) -> bool {
+        self.scalar_entries().iter().all(|(_, d)| d.is_none())
+            && self.detent_amplitude_nm.is_none()
+            && self.detent_phase_rad.is_none()
+            && self.load_torque_nm.is_none()
+    }
+
+    fn check(&self, section: &str) -> Result<(), String> {
+        let all = self.scalar_entries().into_iter().chain([
+            ("detent_amplitude_nm", self.detent_amplitude_nm),
+            ("detent_phase_rad", self.detent_phase_rad),
+            ("load_torque_nm", self.load_torque_nm),
+        ]);
+        for (key, d) in all {
+            if let Some(d) = d {
+                d.check(&format!("{section}.{key}"))?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Which model the controller is given.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ControllerModel {
+    /// The nominal profile (a drive shipped with the datasheet motor's model).
+    #[default]
+    Nominal,
+    /// The variant's own parameters (perfect identification), before `[controller_error]`.
+    Plant,
+}
+
+/// `[sweep]`: the runs each variant needs.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SweepSection {
+    /// Control modes (`open-loop`, `servo`).
+    pub modes: Vec<String>,
+    /// Compensations (`off`, `patent`, `estimated`); `off` is the reference of every
+    /// reduction and is always run.
+    pub compensations: Vec<String>,
+    /// Detent orders whose resonances are measured (default: the profile's detent orders,
+    /// largest amplitude first).
+    pub orders: Option<Vec<u16>>,
+    /// Speeds per resonance (1..=50).
+    pub points: usize,
+    /// Relative half-width of the speed window around each resonance (0..0.5).
+    pub span: f64,
+    /// Simulated time per run in s (0.2..=100).
+    pub duration_s: f64,
+    /// RK4 steps per control period (1..=1000).
+    pub substeps: u32,
+    /// Current-sensor noise, standard deviation in A (≥ 0).
+    pub current_noise_a: f64,
+}
+
+impl Default for SweepSection {
+    fn default() -> Self {
+        SweepSection {
+            modes: vec!["open-loop".into()],
+            compensations: vec!["off".into(), "patent".into(), "estimated".into()],
+            orders: None,
+            points: 3,
+            span: 0.1,
+            duration_s: 1.0,
+            substeps: 2,
+            current_noise_a: 0.0,
+        }
+    }
+}
+
+/// `[report]`: how the results are summarised.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ReportSection {
+    /// The reduction (peak-to-peak velocity error off / on) a variant must reach at every
+    /// resonance to count as holding.
+    pub threshold: f64,
+    /// How many worst variants to list per mode and compensation.
+    pub worst: usize,
+}
+
+impl Default for ReportSection {
+    fn default() -> Self {
+        ReportSection { threshold: 10.0, worst: 5 }
+    }
+}
+
+/// The study file as written.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StudySpec {
+    /// Preset name or profile file (relative paths are relative to the spec file).
+    pub motor: String,
+    /// Number of variants (1..=10 000 000).
+    pub variants: u64,
+    /// Study seed: variant `i` draws from `derived_seed(seed, i)`.
+    #[serde(default = "one")]
+    pub seed: u64,
+    /// The controller's model.
+    #[serde(default)]
+    pub controller: ControllerModel,
+    /// Runs per variant.
+    #[serde(default)]
+    pub sweep: SweepSection,
+    /// Distributions of the simulated motor.
+    #[serde(default)]
+    pub plant: Variation,
+    /// Identification error of the controller's model, applied to its parameters.
+    #[serde(default)]
+    pub controller_error: Variation,
+    /// Summary settings.
+    #[serde(default)]
+    pub report: ReportSection,
+}
+
+fn one() -> u64 {
+    1
+}
+
+/// Largest number of variants a study accepts.
+pub const MAX_VARIANTS: u64 = 10_000_000;
+
+/// Why a study cannot run. Every message names the file and the key.
+#[derive(Debug, thiserror::Error)]
+pub enum StudyError {
+    /// The spec file could not be read.
+    #[error("{path}: cannot read: {source}")]
+    Read {
+        /// The file.
+        path: String,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// Not valid TOML or not the spec's shape, or a value out of range.
+    #[error("{origin}: {message}")]
+    Spec {
+        /// The file.
+        origin: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// The motor profile could not be loaded.
+    #[error("{origin}: motor: {source}")]
+    Motor {
+        /// The spec file.
+        origin: String,
+        /// Why.
+        source: stepdamp_sim::ProfileError,
+    },
+    /// A drawn variant is not a valid motor (the distribution reaches outside the
+    /// physical range).
+    #[error("variant {index}: {message}")]
+    Variant {
+        /// Variant index.
+        index: u64,
+        /// Why.
+        message: String,
+    },
+    /// A results table does not belong to this study.
+    #[error("results table: {0}")]
+    Table(String),
+}
+
+/// A study ready to run: the spec, its nominal profile, and the parsed lists. Serialisable
+/// (JSON) so that it can be shipped to workers with no access to the spec's files.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Study {
+    /// The spec as written.
+    pub spec: StudySpec,
+    /// The nominal motor.
+    pub nominal: Profile,
+    /// Where the spec came from (for messages).
+    pub origin: String,
+    /// Resonance orders measured, in table order.
+    pub orders: Vec<u16>,
+}
+
+/// Parses a mode name as written in tables (`open-loop`, `servo`).
+pub fn parse_mode(s: &str) -> Option<Mode> {
+    [Mode::OpenLoop, Mode::Servo].into_iter().find(|&m| mode_name(m) == s)
+}
+
+/// Parses a compensation name as written in tables (`off`, `patent`, `estimated`).
+pub fn parse_compensation(s: &str) -> Option<Compensation> {
+    [Compensation::Off, Compensation::Patent, Compensation::Estimated].into_iter().find(|&c| compensation_name(c) == s)
+}
+
+impl Study {
+    /// Reads and checks a spec file.
+    pub fn load(path: &Path) -> Result<Study, StudyError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|source| StudyError::Read { path: path.display().to_string(), source })?;
+        let dir = path.parent().unwrap_or(Path::new("."));
+        Study::from_toml_str(&text, &path.display().to_string(), dir)
+    }
+
+    /// Parses and checks spec text; `origin` names it in errors and `base_dir` resolves a
+    /// relative motor path.
+    pub fn from_toml_str(text: &str, origin: &str, base_dir: &Path) -> Result<Study, StudyError> {
+        let bad = |message: String| StudyError::Spec { origin: origin.to_string(), message };
+        let spec: StudySpec = toml::from_str(text).map_err(|e| bad(one_line(&e.to_string())))?;
+        let nominal = match Profile::preset(&spec.motor) {
+            Some(p) => p,
+            None => {
+                let path = base_dir.join(&spec.motor);
+                if !path.exists() {
+                    return Err(bad(format!(
+                        "motor = '{}': not a preset ({}) nor a file ({})",
+                        spec.motor,
+                        stepdamp_sim::PRESETS.join(", "),
+                        path.display()
+                    )));
+                }
+                Profile::from_file(&path).map_err(|source| StudyError::Motor { origin: origin.to_string(), source })?
+            }
+        };
+        let s = &spec.sweep;
+        if !(1..=MAX_VARIANTS).contains(&spec.variants) {
+            return Err(bad(format!("variants = {}: must be in 1..={MAX_VARIANTS}", spec.variants)));
+        }
+        if s.modes.is_empty() {
+            return Err(bad("sweep.modes: the list is empty".into()));
+        }
+        for m in &s.modes {
+            if parse_mode(m).is_none() {
+                return Err(bad(format!("sweep.modes: '{m}': expected open-loop or servo")));
+            }
+        }
+        for c in &s.compensations {
+            if parse_compensation(c).is_none() {
+                return Err(bad(format!("sweep.compensations: '{c}': expected off, patent or estimated")));
+            }
+        }
+        if !s.compensations.iter().any(|c| c != "off") {
+            return Err(bad("sweep.compensations: name at least one of patent, estimated (off is always run)".into()));
+        }
+        if !(1..=50).contains(&s.points) {
+            return Err(bad(format!("sweep.points = {}: must be in 1..=50", s.points)));
+        }
+        if !(s.span.is_finite() && (0.0..0.5).contains(&s.span)) {
+            return Err(bad(format!("sweep.span = {}: must be in [0, 0.5)", s.span)));
+        }
+        if s.points > 1 && s.span == 0.0 {
+            return Err(bad(format!("sweep.span = 0 with sweep.points = {}: the points would coincide", s.points)));
+        }
+        if !(s.duration_s.is_finite() && (0.2..=100.0).contains(&s.duration_s)) {
+            return Err(bad(format!("sweep.duration_s = {}: must be in 0.2..=100 s", s.duration_s)));
+        }
+        if !(1..=1000).contains(&s.substeps) {
+            return Err(bad(format!("sweep.substeps = {}: must be in 1..=1000", s.substeps)));
+        }
+        if !(s.current_noise_a.is_finite() && s.current_noise_a >= 0.0) {
+            return Err(bad(format!("sweep.current_noise_a = {}: must be ≥ 0 A", s.current_noise_a)));
+        }
+        let have: Vec<u16> = nominal.motor.detent.iter().map(|h| h.order).collect();
+        let orders = match &s.orders {
+            Some(o) => {
+                if o.is_empty() {
+                    return Err(bad("sweep.orders: the list is empty".into()));
+                }
+                for (i, &k) in o.iter().enumerate() {
+                    if k == 0 || o[..i].contains(&k) {
+                        return Err(bad(format!("sweep.orders: {k}: orders must be distinct and ≥ 1")));
+                    }
+                }
+                o.clone()
+            }
+            None if have.is_empty() => {
+                return Err(bad(format!("sweep.orders: {} has no detent harmonics; name the orders", nominal.name)));
+            }
+            None => nominal.detent_orders(),
+        };
+        spec.plant.check("plant").map_err(bad)?;
+        spec.controller_error.check("controller_error").map_err(bad)?;
+        if spec.controller_error.load_torque_nm.is_some() {
+            return Err(bad("controller_error.load_torque_nm: the load is not part of the controller's model".into()));
+        }
+        let r = &spec.report;
+        if !(r.threshold.is_finite() && r.threshold > 0.0) {
+            return Err(bad(format!("report.threshold = {}: must be > 0", r.threshold)));
+        }
+        if r.worst > 1000 {
+            return Err(bad(format!("report.worst = {}: at most 1000", r.worst)));
+        }
+        let study = Study { spec, nominal, origin: origin.to_string(), orders };
+        // The nominal motor itself must run: check its sweep set-up now, once.
+        let v = study.variant(0)?;
+        study
+            .sweep_spec(&v)
+            .validate(&v.plant, "plant", &v.controller, "controller")
+            .map_err(|e| bad(e.to_string()))?;
+        Ok(study)
+    }
+
+    /// The study as JSON (to ship to workers).
+    pub fn to_json(&self) -> String {
+        serde_json::to_string(self).expect("a study always serialises")
+    }
+
+    /// A study from [`Study::to_json`].
+    pub fn from_json(text: &str) -> Result<Study, StudyError> {
+        serde_json::from_str(text)
+            .map_err(|e| StudyError::Spec { origin: "study JSON".into(), message: one_line(&e.to_string()) })
+    }
+
+    /// The modes run, in table order.
+    pub fn modes(&self) -> Vec<Mode> {
+        self.spec.sweep.modes.iter().filter_map(|m| parse_mode(m)).collect()
+    }
+
+    /// The compensations run, in table order: `off` first, then the spec's others.
+    pub fn compensations(&self) -> Vec<Compensation> {
+        let mut out = vec![Compensation::Off];
+        for c in self.spec.sweep.compensations.iter().filter_map(|c| parse_compensation(c)) {
+            if !out.contains(&c) {
+                out.push(c);
+            }
+        }
+        out
+    }
+}
+
+/// A parser message on one line.
+fn one_line(s: &str) -> String {
+    s.split_whitespace().collect::<Vec<_>>().join(" ")
+}

@@ -1,0 +1,199 @@
+"""stepdamp: model-based active damping of hybrid stepper motors (Rust core).
+
+Units are SI and in the names: ``speed_rad_s``, ``duration_s``, ``load_torque_nm`` …
+
+>>> import stepdamp
+>>> motor = stepdamp.Profile.preset("patent-motor")
+>>> log = stepdamp.simulate(motor, "open-loop", "patent", speed_rad_s=8.4, duration_s=0.4)
+
+Every number comes from the Rust crates (the same code as the ``stepdamp`` CLI); errors are
+raised as :class:`StepdampError` (a ``ValueError``) with the CLI's one-line message.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+from typing import Any, Iterable, Sequence, Union
+
+import numpy as np
+
+from . import _native
+from ._native import PRESETS, Profile, StepdampError
+
+__all__ = [
+    "PRESETS",
+    "Profile",
+    "StepdampError",
+    "StudyResult",
+    "SweepSummary",
+    "identify",
+    "linear_grid",
+    "load_spec",
+    "resonance",
+    "simulate",
+    "study",
+    "sweep",
+]
+
+try:  # pandas is optional: without it the tables come back as dicts of numpy arrays.
+    import pandas as _pd
+except ImportError:  # pragma: no cover - exercised on machines without pandas
+    _pd = None
+
+
+def _table(columns: dict, as_frame: Union[bool, None]):
+    if as_frame is None:
+        as_frame = _pd is not None
+    if as_frame:
+        if _pd is None:
+            raise ImportError("as_frame=True needs pandas (pip install pandas)")
+        return _pd.DataFrame(columns, copy=False)
+    return columns
+
+
+def simulate(
+    profile: Profile,
+    mode: str = "open-loop",
+    compensation: str = "patent",
+    speed_rad_s: float = 10.0,
+    duration_s: float = 1.5,
+    *,
+    controller: Union[Profile, None] = None,
+    dwell_s: float = 0.05,
+    ramp_s: float = 0.1,
+    load_torque_nm: float = 0.0,
+    current_noise_a: float = 0.0,
+    substeps: int = 2,
+    seed: int = 1,
+    as_frame: Union[bool, None] = None,
+    return_metrics: bool = False,
+):
+    """One constant-speed run from rest (the CLI's ``stepdamp simulate``).
+
+    ``mode``: ``open-loop`` or ``servo``; ``compensation``: ``off``, ``patent`` or
+    ``estimated`` (open loop only). The run holds the motor at standstill for ``dwell_s``,
+    ramps to ``speed_rad_s`` (rad/s) in ``ramp_s`` and runs to ``duration_s`` (s).
+    ``controller`` is the profile the controller believes in (default: ``profile``).
+
+    Returns the run log, one row per control period, columns ``t_s``, ``theta_cmd_rad``,
+    ``theta_fb_rad``, ``omega_fb_rad_s``, ``i_a_a``, ``i_b_a``, ``i_d_a``, ``i_q_a``,
+    ``iq_cmd_a``: a pandas DataFrame when pandas is installed (``as_frame=None``), else a
+    dict of numpy arrays. With ``return_metrics=True``, ``(log, metrics)`` where metrics
+    has ``vel_err_rms_rad_s``, ``vel_err_pp_rad_s``, ``lost_sync``,
+    ``max_load_angle_e_rad``.
+    """
+    log, metrics = _native.simulate(
+        profile, mode, compensation, float(speed_rad_s), float(duration_s),
+        controller=controller, dwell_s=dwell_s, ramp_s=ramp_s, load_torque_nm=load_torque_nm,
+        current_noise_a=current_noise_a, substeps=substeps, seed=seed,
+    )
+    out = _table(log, as_frame)
+    if return_metrics:
+        return out, metrics
+    return out
+
+
+def linear_grid(from_rad_s: float, to_rad_s: float, points: int) -> list:
+    """``points`` speeds evenly spaced from ``from_rad_s`` to ``to_rad_s`` inclusive, rad/s
+    (the CLI's ``--from/--to/--points`` grid, bit for bit)."""
+    return _native.linear_grid(float(from_rad_s), float(to_rad_s), int(points))
+
+
+class SweepSummary(dict):
+    """Per-resonance summary of a sweep: ``resonances`` is a list of
+    ``{order, speed_rad_s, peaks: {"<mode> <compensation>": {pp_rad_s, reduction}}}``, the
+    peak-to-peak velocity error within ±10 % of each resonance speed and its reduction
+    (off / on)."""
+
+    def __repr__(self) -> str:
+        lines = [f"SweepSummary({self['motor']}, ω_n {self['natural_frequency_rad_s']:.1f} rad/s)"]
+        for r in self["resonances"]:
+            parts = []
+            for k, v in r["peaks"].items():
+                s = f"{k} {v['pp_rad_s']:.4g} rad/s"
+                if "reduction" in v:
+                    s += f" ({v['reduction']:.1f}x)"
+                parts.append(s)
+            lines.append(f"  k={r['order']} {r['speed_rad_s']:.2f} rad/s: " + ", ".join(parts))
+        return "\n".join(lines)
+
+
+def _list(x: Union[str, Iterable[str]]) -> list:
+    if isinstance(x, str):
+        return [p.strip() for p in x.split(",")]
+    return list(x)
+
+
+def sweep(
+    profile: Profile,
+    modes: Union[str, Sequence[str]] = ("open-loop", "servo"),
+    compensations: Union[str, Sequence[str]] = ("off", "patent"),
+    speeds_rad_s: Union[Sequence[float], np.ndarray, None] = None,
+    *,
+    controller: Union[Profile, None] = None,
+    duration_s: float = 1.5,
+    load_torque_nm: float = 0.0,
+    current_noise_a: float = 0.0,
+    substeps: int = 2,
+    seed: int = 1,
+    as_frame: Union[bool, None] = None,
+):
+    """Velocity error against speed (the CLI's ``stepdamp sweep``), on all cores.
+
+    ``speeds_rad_s`` defaults to the CLI's grid, ``linear_grid(1, 40, 60)``. Returns
+    ``(table, summary)``: the sweep table (columns ``mode``, ``compensation``,
+    ``speed_cmd_rad_s``, ``vel_err_rms_rad_s``, ``vel_err_pp_rad_s``, ``lost_sync``; the CLI's
+    ``sweep.csv``) and a :class:`SweepSummary`.
+    """
+    if speeds_rad_s is None:
+        speeds_rad_s = linear_grid(1.0, 40.0, 60)
+    table, summary = _native.sweep(
+        profile, _list(modes), _list(compensations), [float(w) for w in np.asarray(speeds_rad_s).ravel()],
+        controller=controller, duration_s=duration_s, load_torque_nm=load_torque_nm,
+        current_noise_a=current_noise_a, substeps=substeps, seed=seed,
+    )
+    return _table(table, as_frame), SweepSummary(summary)
+
+
+def _log_arg(log: Any, i: int):
+    if isinstance(log, (str, os.PathLike)):
+        return ("path", os.fspath(log), None)
+    if _pd is not None and isinstance(log, _pd.DataFrame):
+        frame = log
+    elif isinstance(log, dict):
+        if _pd is not None:
+            frame = _pd.DataFrame(log)
+        else:
+            names = list(log)
+            data = np.column_stack([np.asarray(log[n], dtype=float) for n in names])
+            buf = io.StringIO()
+            np.savetxt(buf, data, delimiter=",", header=",".join(names), comments="", fmt="%.17g")
+            return ("csv", buf.getvalue(), f"<log {i}>")
+    else:
+        raise TypeError(f"log {i}: expected a path, a pandas DataFrame or a dict of arrays, got {type(log).__name__}")
+    # Through CSV text, so the CLI's reader checks the columns exactly as for a file.
+    return ("csv", frame.to_csv(index=False, float_format="%.17g"), f"<DataFrame {i}>")
+
+
+def identify(logs: Sequence[Any], base: Profile, orders: Sequence[int] = (1, 2, 4), name: Union[str, None] = None):
+    """Identifies the detent harmonics, Coulomb and viscous friction and the inertia from
+    servo-mode run logs (the CLI's ``stepdamp identify fit``).
+
+    ``logs``: paths of run-log CSV files, pandas DataFrames or dicts of arrays with the
+    run-log columns (``t_s``, ``theta_fb_rad``, ``i_q_a`` or ``i_a_a``/``i_b_a``, optionally
+    ``iq_cmd_a``). ``base``: the profile whose Km, Nr, encoder and servo settings apply.
+    Returns ``(profile, report)``: ``base`` with the identified values (named ``name``) and
+    the fit report (estimates with 95 % half-widths, N·m, rad, kg·m²; warnings).
+    """
+    args = [_log_arg(log, i) for i, log in enumerate(logs)]
+    return _native.identify(args, base, [int(k) for k in orders], name)
+
+
+def resonance(profile: Profile) -> dict:
+    """Natural frequency (rad/s), holding stiffness (N·m/rad), damping ratio and the
+    resonance speed of each detent order (rad/s) of a profile (the CLI's ``resonance``)."""
+    return _native.resonance(profile)
+
+
+from .studies import StudyResult, load_spec, study  # noqa: E402

@@ -1,0 +1,46 @@
+from os import PathLike
+from typing import Any, Dict, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from ._native import PRESETS as PRESETS, Profile as Profile, StepdampError as StepdampError
+from .studies import StudyResult as StudyResult, load_spec as load_spec, study as study
+
+class SweepSummary(dict): ...
+
+def simulate(
+    profile: Profile,
+    mode: str = "open-loop",
+    compensation: str = "patent",
+    speed_rad_s: float = 10.0,
+    duration_s: float = 1.5,
+    *,
+    controller: Optional[Profile] = None,
+    dwell_s: float = 0.05,
+    ramp_s: float = 0.1,
+    load_torque_nm: float = 0.0,
+    current_noise_a: float = 0.0,
+    substeps: int = 2,
+    seed: int = 1,
+    as_frame: Optional[bool] = None,
+    return_metrics: bool = False,
+) -> Any: ...
+def linear_grid(from_rad_s: float, to_rad_s: float, points: int) -> list: ...
+def sweep(
+    profile: Profile,
+    modes: Union[str, Sequence[str]] = ...,
+    compensations: Union[str, Sequence[str]] = ...,
+    speeds_rad_s: Union[Sequence[float], np.ndarray, None] = None,
+    *,
+    controller: Optional[Profile] = None,
+    duration_s: float = 1.5,
+    load_torque_nm: float = 0.0,
+    current_noise_a: float = 0.0,
+    substeps: int = 2,
+    seed: int = 1,
+    as_frame: Optional[bool] = None,
+) -> Tuple[Any, SweepSummary]: ...
+def identify(
+    logs: Sequence[Any], base: Profile, orders: Sequence[int] = (1, 2, 4), name: Optional[str] = None
+) -> Tuple[Profile, Dict[str, Any]]: ...
+def resonance(profile: Profile) -> Dict[str, Any]: ...

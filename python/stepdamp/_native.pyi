@@ -1,0 +1,105 @@
+"""Type stubs of the Rust extension (stepdamp._native). Units are SI and in the names."""
+
+from os import PathLike
+from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+PRESETS: List[str]
+
+class StepdampError(ValueError):
+    """An error reported by stepdamp's Rust code (the CLI's one-line message)."""
+
+class Profile:
+    """A motor profile (the CLI's TOML format); setting an attribute validates it."""
+
+    name: str
+    km_nm_per_a: float
+    """Torque constant Km, N·m/A."""
+    pole_pairs: int
+    """Rotor teeth / pole pairs Nr."""
+    resistance_ohm: float
+    """Phase resistance R, Ω."""
+    inductance_h: float
+    """Phase inductance L, H."""
+    inertia_kg_m2: float
+    """Rotor + load inertia J, kg·m²."""
+    viscous_nm_s_per_rad: float
+    """Viscous friction D, N·m·s/rad."""
+    coulomb_friction_nm: float
+    """Coulomb friction Fs, N·m."""
+    bus_voltage_v: float
+    """DC bus voltage, V."""
+    pwm_hz: float
+    """PWM and control frequency, Hz."""
+    holding_current_a: float
+    """Open-loop holding current, A."""
+    current_limit_a: float
+    """Current vector limit, A."""
+    current_loop_bandwidth_hz: float
+    """Closed current-loop bandwidth, Hz."""
+    computation_delay_periods: int
+    """Periods between sampling and the new duties taking effect (0 or 1)."""
+    counts_per_rev: int
+    """Encoder counts per mechanical revolution."""
+    servo_bandwidth_hz: float
+    """Servo position-loop natural frequency, Hz."""
+    servo_velocity_filter_hz: float
+    """Encoder velocity filter corner, Hz."""
+    topology: str
+    """Power stage: "three-leg" or "two-h-bridge"."""
+    detent: List[Dict[str, Any]]
+    """Detent harmonics {order, amplitude_nm (N·m), phase_rad (rad)}; torque −Σ A sin(k·Nr·θ + φ)."""
+
+    @staticmethod
+    def preset(name: str) -> Profile: ...
+    @staticmethod
+    def load(path: Union[str, PathLike[str]]) -> Profile: ...
+    @staticmethod
+    def from_toml(text: str, origin: str = "<string>") -> Profile: ...
+    def to_toml(self) -> str: ...
+    def holding_stiffness_nm_per_rad(self) -> float: ...
+    def natural_frequency_rad_s(self) -> float: ...
+    def resonance_speed_rad_s(self, order: int) -> float: ...
+    def damping_ratio(self) -> float: ...
+    def copy(self) -> Profile: ...
+
+def simulate(
+    profile: Profile,
+    mode: str = "open-loop",
+    compensation: str = "patent",
+    speed_rad_s: float = 10.0,
+    duration_s: float = 1.5,
+    *,
+    controller: Optional[Profile] = None,
+    dwell_s: float = 0.05,
+    ramp_s: float = 0.1,
+    load_torque_nm: float = 0.0,
+    current_noise_a: float = 0.0,
+    substeps: int = 2,
+    seed: int = 1,
+) -> Tuple[Dict[str, npt.NDArray[np.float64]], Dict[str, Any]]: ...
+def linear_grid(from_rad_s: float, to_rad_s: float, points: int) -> List[float]: ...
+def sweep(
+    profile: Profile,
+    modes: Sequence[str],
+    compensations: Sequence[str],
+    speeds_rad_s: Sequence[float],
+    *,
+    controller: Optional[Profile] = None,
+    duration_s: float = 1.5,
+    load_torque_nm: float = 0.0,
+    current_noise_a: float = 0.0,
+    substeps: int = 2,
+    seed: int = 1,
+) -> Tuple[Dict[str, Any], Dict[str, Any]]: ...
+def resonance(profile: Profile) -> Dict[str, Any]: ...
+def identify(
+    logs: Sequence[Tuple[str, str, Optional[str]]], base: Profile, orders: Sequence[int] = ..., name: Optional[str] = None
+) -> Tuple[Profile, Dict[str, Any]]: ...
+def study_load(path: Union[str, PathLike[str]]) -> str: ...
+def study_from_toml(text: str, origin: str = "<string>", base_dir: str = ".") -> str: ...
+def study_info(json: str) -> Tuple[int, List[str]]: ...
+def study_run_range(json: str, start: int, stop: int) -> Dict[str, npt.NDArray[np.float64]]: ...
+def study_summarize(json: str, columns: Dict[str, Sequence[float]]) -> Tuple[str, str]: ...
