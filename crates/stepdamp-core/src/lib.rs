@@ -62,6 +62,7 @@ pub mod modulator;
 pub mod observer;
 pub mod park;
 pub mod pi;
+pub mod trig;
 
 pub use angle::{MicrostepAccumulator, Position};
 pub use config::{
