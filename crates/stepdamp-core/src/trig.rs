@@ -47,12 +47,18 @@ pub const SIN_COS_RAD_MAX_ERROR: f32 = 4.0e-7;
 const RAD_PER_UNIT: f32 = TAU / 4_294_967_296.0;
 
 // Cephes sinf.c: minimax for sin x = x + x³·P(x²) on [0, π/4].
+#[allow(clippy::excessive_precision)] // the digits as published
 const S1: f32 = -1.666_665_461_1e-1;
+#[allow(clippy::excessive_precision)] // the digits as published
 const S2: f32 = 8.332_160_873_6e-3;
+#[allow(clippy::excessive_precision)] // the digits as published
 const S3: f32 = -1.951_529_589_1e-4;
 // Cephes cosf.c: minimax for cos x = 1 − x²/2 + x⁴·Q(x²) on [0, π/4].
+#[allow(clippy::excessive_precision)] // the digits as published
 const C1: f32 = 4.166_664_568_298_827e-2;
+#[allow(clippy::excessive_precision)] // the digits as published
 const C2: f32 = -1.388_731_625_493_765e-3;
+#[allow(clippy::excessive_precision)] // the digits as published
 const C3: f32 = 2.443_315_711_809_948e-5;
 
 /// `(sin x, cos x)` for `x = 2π·r/2³²`, `r ∈ [−2²⁹, 2²⁹]` (|x| ≤ π/4).
@@ -109,6 +115,7 @@ pub fn sin_cos_rad(x: f32) -> (f32, f32) {
 /// 2π split for exact range reduction: `TAU_HI` = 201/32 has 8 significant bits, so
 /// `n·TAU_HI` is exact in `f32` for `|n| < 2¹⁶`; `TAU_LO` = 2π − `TAU_HI`.
 const TAU_HI: f32 = 6.281_25;
+#[allow(clippy::excessive_precision)] // rounded to f32 by the compiler
 const TAU_LO: f32 = 1.935_307_179_586_5e-3;
 
 #[cfg(test)]
