@@ -197,7 +197,9 @@ impl LoadAngleObserver {
             }
             return 0.0;
         }
-        let v = st.voltage_history[self.delay_periods];
+        // `& 1`: delay_periods is 0 or 1 (see `new`), and the mask lets the compiler drop the
+        // bounds check (and its panic path) from the step.
+        let v = st.voltage_history[self.delay_periods & 1];
         let (ia, ib) = (0.5 * (i.a + st.last_current.a), 0.5 * (i.b + st.last_current.b));
         st.last_current = i;
         // The frame at the middle of the period: θc − ½Δ (small-angle rotation).
@@ -239,7 +241,7 @@ impl LoadAngleObserver {
             let quiet = self.e_floor_v * self.e_floor_v + 9.0 * self.fast_noise_gain * st.residual_power_v2;
             if settled && c2 > 1e-4 && across * across < quiet * c2 {
                 let de = (st.e_dq.d * cmd.d + st.e_dq.q * cmd.q) / c2;
-                st.r_hat_ohm = (st.r_hat_ohm + self.r_trim_gain * de).max(0.25 * self.r_ohm).min(4.0 * self.r_ohm);
+                st.r_hat_ohm = crate::bound(st.r_hat_ohm + self.r_trim_gain * de, 0.25 * self.r_ohm, 4.0 * self.r_ohm);
             }
             st.delta_rad = 0.0;
         } else {
@@ -250,8 +252,8 @@ impl LoadAngleObserver {
             let e2 = d * d + q * q;
             let swing = fast - slow;
             self.slow.update(&mut st.swing_power_rad2, swing * swing);
-            let noise = self.fast_noise_gain * st.residual_power_v2 / e2.max(1e-12);
-            st.fast_weight = crate::bound(1.0 - noise / st.swing_power_rad2.max(1e-12), 0.0, 1.0);
+            let noise = self.fast_noise_gain * st.residual_power_v2 / crate::at_least(e2, 1e-12);
+            st.fast_weight = crate::bound(1.0 - noise / crate::at_least(st.swing_power_rad2, 1e-12), 0.0, 1.0);
             // Weak back-EMF at low speed: shrink towards the patent's law (δ = 0).
             let w = e2 / (e2 + self.e_floor_v * self.e_floor_v);
             st.delta_rad = if cfg!(feature = "ablate-load-angle") { 0.0 } else { w * (slow + st.fast_weight * swing) };
@@ -259,7 +261,7 @@ impl LoadAngleObserver {
             // speed would make the ratio explode), and bound each sample.
             let speed = speed_rad_s.abs();
             if self.km * speed > KM_MIN_EMF_FLOORS * self.e_floor_v {
-                let ratio = (libm::sqrtf(e2) / speed).max(0.5 * self.km).min(2.0 * self.km);
+                let ratio = crate::bound(libm::sqrtf(e2) / speed, 0.5 * self.km, 2.0 * self.km);
                 self.km_filter.update(&mut st.km_hat, ratio);
             }
         }
