@@ -4,7 +4,7 @@ use crate::angle::{MicrostepAccumulator, Position, UNITS_PER_ELECTRICAL_REV};
 use crate::config::{Config, Mode};
 use crate::encoder::EncoderState;
 use crate::modulator::LegDuties;
-use crate::observer::ObserverState;
+use crate::observer::{ObserverInput, ObserverState};
 use crate::park::{Ab, Dq, inverse_park, park};
 use crate::trig::{sin_cos_rad, sin_cos_turn};
 
@@ -173,14 +173,14 @@ pub fn step(cfg: &Config, st: &mut State, m: &Measurement) -> Output {
     let omega_e = st.speed_cmd_rad_s * f32::from(cfg.pole_pairs);
     let (cs, cc, gain) = match &cfg.observer {
         Some(obs) => {
-            let dir = if st.speed_cmd_rad_s > 0.0 {
-                1.0
-            } else if st.speed_cmd_rad_s < 0.0 {
-                -1.0
-            } else {
-                0.0
+            let input = ObserverInput {
+                current: i_ab,
+                sin,
+                cos,
+                dtheta_e_rad: st.dtheta_e_rad,
+                speed_rad_s: st.speed_cmd_rad_s,
             };
-            let delta = obs.update(&mut st.observer, i_ab, sin, cos, st.dtheta_e_rad, dir, st.speed_cmd_rad_s);
+            let delta = obs.update(&mut st.observer, &input);
             let (sd, cd) = sin_cos_rad(delta);
             // q of θc is δ̂ off the rotor's q axis: divide by cos δ̂ (bounded); and correct
             // the configured Km by the back-EMF's measure of it.
