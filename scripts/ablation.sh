@@ -1,13 +1,16 @@
 #!/usr/bin/env bash
 # Ablation of the estimated-angle compensation (README, "What the angle estimate buys"):
 # the same three open-loop sweeps as scripts/figures.sh, once with the normal build and
-# once with the core's `ablate-load-angle` feature, which keeps the current-loop inverse,
-# the R̂ trim and the K̂m correction but evaluates the compensation at δ̂ = 0 (θ_cmd).
-# Writes docs/ablation.txt. The ablated build goes to its own target directory.
+# once built with `--cfg stepdamp_ablate_load_angle` (a research build of the core, not a
+# Cargo feature, so no crate can switch it on in a production build), which keeps the
+# current-loop inverse, the R̂ trim and the K̂m correction but evaluates the compensation
+# at δ̂ = 0 (θ_cmd). Writes docs/ablation.txt. The ablated build goes to its own target
+# directory (its RUSTFLAGS differ, so it must not share the normal build's artefacts).
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 cargo build --release -p stepdamp
-CARGO_TARGET_DIR=target/ablate-load-angle cargo build --release -p stepdamp --features stepdamp-core/ablate-load-angle
+RUSTFLAGS="${RUSTFLAGS:-} --cfg stepdamp_ablate_load_angle" CARGO_TARGET_DIR=target/ablate-load-angle \
+    cargo build --release -p stepdamp
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 {

@@ -5,7 +5,7 @@ use crate::correction::CorrectionTable;
 use crate::detent::{Harmonic, HarmonicSeries};
 use crate::encoder::Encoder;
 use crate::modulator::Topology;
-use crate::observer::LoadAngleObserver;
+use crate::observer::{LoadAngleObserver, ObserverSettings};
 use crate::pi::Pi;
 
 /// What the controller knows of the motor (SI units).
@@ -425,16 +425,16 @@ impl Config {
             compensation_lead2_s: (f32::from(d.computation_delay_periods) + 0.5) * ts,
             observer: if estimated {
                 // The floor: the back-EMF error of a 2 % resistance error at holding current.
-                Some(LoadAngleObserver::new(
-                    r,
-                    l,
-                    km,
-                    ts,
-                    OBSERVER_BANDWIDTH_HZ,
-                    observer_floor_v,
-                    usize::from(d.computation_delay_periods),
-                    bw,
-                ))
+                Some(LoadAngleObserver::new(&ObserverSettings {
+                    resistance_ohm: r,
+                    inductance_h: l,
+                    km_nm_per_a: km,
+                    period_s: ts,
+                    bandwidth_hz: OBSERVER_BANDWIDTH_HZ,
+                    emf_floor_v: observer_floor_v,
+                    delay_periods: d.computation_delay_periods,
+                    current_loop_bandwidth_hz: bw,
+                }))
             } else {
                 None
             },

@@ -95,7 +95,7 @@ pub fn angle_law(holding_current_a: f32, series_a: f32) -> Dq {
         return Dq::default();
     }
     let delta = crate::bound(series_a / holding_current_a, -core::f32::consts::FRAC_PI_2, core::f32::consts::FRAC_PI_2);
-    let (s, c) = sincos(delta);
+    let (s, c) = crate::trig::sin_cos_rad(delta);
     Dq { d: holding_current_a * c, q: holding_current_a * s }
 }
 
@@ -115,12 +115,6 @@ pub fn table_law(
     let [a, b] = rows[tick % TABLE_TICKS];
     let scale = holding_current_a / f32::from(table.full_scale.max(1));
     crate::park::park(Ab { a: f32::from(a) * scale, b: f32::from(b) * scale }, sin, cos)
-}
-
-/// The core's sine and cosine (one place to point at the core's trigonometry).
-#[inline]
-fn sincos(x: f32) -> (f32, f32) {
-    libm::sincosf(x)
 }
 
 #[cfg(test)]

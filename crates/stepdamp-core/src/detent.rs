@@ -95,7 +95,9 @@ impl HarmonicSeries {
         sum
     }
 
-    /// The series at electrical angle `θe` in rad.
+    /// The series at electrical angle `θe` in rad (a host-side helper: `libm::sincosf`,
+    /// 0.5 ulp; the controller's step passes its own [`crate::trig::sin_cos_turn`] to
+    /// [`HarmonicSeries::eval_with_derivatives`] instead).
     pub fn eval(&self, theta_e: f32) -> f32 {
         let (s, c) = libm::sincosf(theta_e);
         self.eval_sin_cos(s, c)

@@ -4,8 +4,9 @@ use crate::angle::{MicrostepAccumulator, Position, UNITS_PER_ELECTRICAL_REV};
 use crate::config::{Compensation, Config, Mode};
 use crate::encoder::EncoderState;
 use crate::modulator::LegDuties;
-use crate::observer::ObserverState;
+use crate::observer::{ObserverInput, ObserverState};
 use crate::park::{Ab, Dq, inverse_park, park};
+use crate::trig::{sin_cos_rad, sin_cos_turn};
 
 /// Consecutive rejected current samples after which the current sensor is declared
 /// faulty: 20 periods, 1 ms at 20 kHz.
@@ -45,6 +46,9 @@ pub struct Measurement {
 pub struct State {
     command: MicrostepAccumulator,
     speed_cmd_rad_s: f32,
+    /// Electrical angle the command advances per period, rad (the increment in rad, set
+    /// with the speed, so that the step converts no `i64`).
+    dtheta_e_rad: f32,
     encoder: EncoderState,
     integral_d_v: f32,
     integral_q_v: f32,
@@ -98,6 +102,8 @@ impl State {
             let speed = crate::bound(speed_rad_s, -max, max);
             self.speed_cmd_rad_s = speed;
             self.command.set_speed(speed, cfg.units_per_rad_s);
+            self.dtheta_e_rad =
+                self.command.increment as f32 * (core::f32::consts::TAU / UNITS_PER_ELECTRICAL_REV as f32);
         }
     }
 
@@ -159,26 +165,26 @@ pub fn step(cfg: &Config, st: &mut State, m: &Measurement) -> Output {
         Mode::OpenLoop => theta_cmd,
         Mode::Servo => theta_fb,
     };
-    let (sin, cos) = libm::sincosf(theta_ctl.electrical_angle_rad());
+    // The low 32 bits are the electrical angle as a fraction of a turn.
+    let (sin, cos) = sin_cos_turn(theta_ctl.0 as u32);
     let i_dq = park(i_ab, sin, cos);
     // Where the compensation is evaluated: θ_cmd (patent, open loop), θ_fb (servo), or the
     // observer's rotor angle θc − δ̂ (estimated, open loop).
     let omega_e = st.speed_cmd_rad_s * f32::from(cfg.pole_pairs);
     let (cs, cc, gain) = match &cfg.observer {
         Some(obs) => {
-            let dtheta = st.command.increment as f32 * (core::f32::consts::TAU / UNITS_PER_ELECTRICAL_REV as f32);
-            let dir = if st.speed_cmd_rad_s > 0.0 {
-                1.0
-            } else if st.speed_cmd_rad_s < 0.0 {
-                -1.0
-            } else {
-                0.0
+            let input = ObserverInput {
+                current: i_ab,
+                sin,
+                cos,
+                dtheta_e_rad: st.dtheta_e_rad,
+                speed_rad_s: st.speed_cmd_rad_s,
             };
-            let delta = obs.update(&mut st.observer, i_ab, sin, cos, dtheta, dir, st.speed_cmd_rad_s);
-            let (sd, cd) = libm::sincosf(delta);
+            let delta = obs.update(&mut st.observer, &input);
+            let (sd, cd) = sin_cos_rad(delta);
             // q of θc is δ̂ off the rotor's q axis: divide by cos δ̂ (bounded); and correct
             // the configured Km by the back-EMF's measure of it.
-            (sin * cd - cos * sd, cos * cd + sin * sd, obs.km_correction(&st.observer) / cd.max(0.5))
+            (sin * cd - cos * sd, cos * cd + sin * sd, obs.km_correction(&st.observer) / crate::at_least(cd, 0.5))
         }
         None => (sin, cos, 1.0),
     };
@@ -204,7 +210,7 @@ pub fn step(cfg: &Config, st: &mut State, m: &Measurement) -> Output {
             ),
             _ => {
                 let q = cfg.open_loop_iq_limit_a;
-                Dq { d: cfg.holding_current_a, q: comp_a.max(-q).min(q) }
+                Dq { d: cfg.holding_current_a, q: crate::bound(comp_a, -q, q) }
             }
         },
         Mode::Servo => servo_law(cfg, st, theta_cmd, theta_fb, comp_a),
@@ -287,7 +293,7 @@ fn servo_law(cfg: &Config, st: &mut State, theta_cmd: Position, theta_fb: Positi
     let integral_next = st.position_integral_rad_s + theta_err * cfg.period_s;
     let iq = cfg.kpv_a * omega_err + cfg.kpp_a * theta_err + cfg.kip_a * integral_next + comp_a + friction;
     let lim = cfg.current_limit_a;
-    let clamped = iq.max(-lim).min(lim);
+    let clamped = crate::bound(iq, -lim, lim);
     if clamped == iq || theta_err * iq < 0.0 {
         st.position_integral_rad_s = integral_next;
     }

@@ -9,13 +9,22 @@
 //! count difference divided by `Ts`, low-pass filtered: its quantum before the filter is
 //! `2π/(cpr·Ts)` (31.4 rad/s for 4000 counts at 20 kHz, the patent's 300 rpm).
 
+use core::num::NonZeroU32;
+
 use crate::angle::Position;
 use crate::lowpass::LowPass;
+
+/// Largest counts per revolution [`Encoder::new`] keeps (larger values are clamped): the
+/// range [`crate::Config::new`] accepts, within which [`Encoder::position`]'s 32-bit long
+/// division cannot overflow.
+const MAX_COUNTS_PER_REV: u32 = 1 << 20;
+/// Largest pole-pair count [`Encoder::new`] keeps (as [`crate::Config::new`] accepts).
+const MAX_POLE_PAIRS: u16 = 1024;
 
 /// Encoder configuration, fixed at start-up.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Encoder {
-    counts_per_rev: u32,
+    counts_per_rev: NonZeroU32,
     pole_pairs: u16,
     rad_s_per_count: f32,
     velocity_filter: LowPass,
@@ -33,19 +42,20 @@ pub struct EncoderState {
 
 impl Encoder {
     /// `counts_per_rev` in `1..=2²⁰` and `pole_pairs` in `1..=1024` (checked by
-    /// [`crate::Config::new`]).
+    /// [`crate::Config::new`]; values outside are clamped into those ranges).
     pub fn new(counts_per_rev: u32, pole_pairs: u16, period_s: f32, velocity_filter_hz: f32) -> Self {
+        let cpr = NonZeroU32::new(counts_per_rev.clamp(1, MAX_COUNTS_PER_REV)).unwrap_or(NonZeroU32::MIN);
         Encoder {
-            counts_per_rev: counts_per_rev.max(1),
-            pole_pairs: pole_pairs.max(1),
-            rad_s_per_count: core::f32::consts::TAU / (counts_per_rev.max(1) as f32 * period_s),
+            counts_per_rev: cpr,
+            pole_pairs: pole_pairs.clamp(1, MAX_POLE_PAIRS),
+            rad_s_per_count: core::f32::consts::TAU / (cpr.get() as f32 * period_s),
             velocity_filter: LowPass::new(velocity_filter_hz, period_s),
         }
     }
 
     /// Counts per mechanical revolution.
     pub fn counts_per_rev(&self) -> u32 {
-        self.counts_per_rev
+        self.counts_per_rev.get()
     }
 
     /// Velocity of one count per period, rad/s (`2π/(cpr·Ts)`).
@@ -58,14 +68,26 @@ impl Encoder {
     pub fn update(&self, st: &mut EncoderState, raw: u32) -> Position {
         let delta = raw.wrapping_sub(st.last_raw) as i32;
         st.last_raw = raw;
-        let cpr = i64::from(self.counts_per_rev);
-        let r = i64::from(st.rem) + i64::from(delta);
-        if (0..cpr).contains(&r) {
-            st.rem = r as u32;
+        // delta = whole revolutions `turns` plus `extra` ∈ [0, cpr) counts, by one 32-bit
+        // division (no 64-bit division on the chip): floor division of a signed count.
+        let cpr = self.counts_per_rev;
+        let mag = delta.unsigned_abs();
+        let (q, m) = (mag / cpr, mag % cpr);
+        let (mut turns, extra) = if delta >= 0 {
+            (i64::from(q), m)
+        } else if m == 0 {
+            (-i64::from(q), 0)
         } else {
-            st.revs = st.revs.wrapping_add(r.div_euclid(cpr));
-            st.rem = r.rem_euclid(cpr) as u32;
+            (-i64::from(q) - 1, cpr.get() - m)
+        };
+        // rem, extra < cpr ≤ 2²⁰: the sum cannot overflow and is below 2·cpr.
+        let mut r = st.rem + extra;
+        if r >= cpr.get() {
+            r -= cpr.get();
+            turns += 1;
         }
+        st.rem = r;
+        st.revs = st.revs.wrapping_add(turns);
         self.velocity_filter.update(&mut st.velocity_rad_s, delta as f32 * self.rad_s_per_count);
         self.position(st)
     }
@@ -75,16 +97,59 @@ impl Encoder {
     pub fn position(&self, st: &EncoderState) -> Position {
         let np = u64::from(self.pole_pairs);
         // The centre of the count's interval [n, n+1): the unbiased estimate whichever way
-        // the rotor turns (rem + ½ counts; (2·rem + 1)·Nr < 2²¹·2¹⁰, so the shift by 31 stays
-        // below 2⁶² and cannot overflow).
-        let frac = (((2 * u64::from(st.rem) + 1) * np) << 31) / u64::from(self.counts_per_rev);
+        // the rotor turns (rem + ½ counts, i.e. ⌊(2·rem + 1)·Nr·2³¹ / cpr⌋ units; (2·rem +
+        // 1)·Nr < 2²¹·2¹⁰ fits a u32).
+        let n = (2 * st.rem + 1) * u32::from(self.pole_pairs);
+        let frac = shl31_div(n, self.counts_per_rev);
         Position(st.revs.wrapping_mul((np << 32) as i64).wrapping_add(frac as i64))
     }
+}
+
+/// `⌊n·2³¹ / d⌋` exactly, for `d ≤ 2²¹`, by long division in 32-bit steps (11, 10 and 10
+/// bits; each shifted remainder is below `d·2¹¹ ≤ 2³²`): the Cortex-M4 divides 32-bit
+/// integers in hardware but 64-bit ones in a ~70-instruction library routine.
+#[inline]
+fn shl31_div(n: u32, d: NonZeroU32) -> u64 {
+    let (q0, r) = (n / d, n % d);
+    let (q1, r) = ((r << 11) / d, (r << 11) % d);
+    let (q2, r) = ((r << 10) / d, (r << 10) % d);
+    let q3 = (r << 10) / d;
+    (u64::from(q0) << 31) + (u64::from(q1) << 20) + (u64::from(q2) << 10) + u64::from(q3)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn long_division_matches_64_bit_division(n in any::<u32>(), d in 1u32..=(1 << 21)) {
+            let d = NonZeroU32::new(d).unwrap();
+            prop_assert_eq!(shl31_div(n, d), (u64::from(n) << 31) / u64::from(d.get()));
+        }
+
+        #[test]
+        fn position_matches_the_exact_count_arithmetic(
+            counts in proptest::collection::vec(any::<i32>(), 1..50), cpr in 1u32..=(1 << 20), np in 1u16..=1024
+        ) {
+            let enc = Encoder::new(cpr, np, 5e-5, 100.0);
+            let mut st = EncoderState::default();
+            let (mut raw, mut total) = (0u32, 0i128);
+            for c in counts {
+                raw = raw.wrapping_add(c as u32);
+                total += i128::from(c);
+                let p = enc.update(&mut st, raw);
+                // Centre of count `total`: (total + ½)/cpr revolutions, floor in units,
+                // modulo 2⁶⁴ (a Position wraps like the counter: few counts per turn and
+                // many pole pairs overflow i64 units within an i32 of counts).
+                let units = (2 * total + 1) * i128::from(np) * (1i128 << 31);
+                let want = units.div_euclid(i128::from(cpr));
+                prop_assert_eq!(p.0, want as i64);
+                prop_assert!(st.rem < cpr);
+            }
+        }
+    }
 
     #[test]
     fn counts_map_to_exact_angles_across_wraps() {

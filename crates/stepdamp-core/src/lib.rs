@@ -63,6 +63,7 @@ pub mod modulator;
 pub mod observer;
 pub mod park;
 pub mod pi;
+pub mod trig;
 
 pub use angle::{MicrostepAccumulator, Position};
 pub use config::{
@@ -75,13 +76,63 @@ pub use drive::{CURRENT_SENSOR_FAULT_PERIODS, Measurement, Output, Signals, Stat
 pub use modulator::{LegDuties, Topology};
 pub use park::{Ab, Dq};
 
-/// `x` limited to `[lo, hi]`, with NaN mapped to `lo` (`f32::clamp` would return NaN,
-/// and the controller must never output or store NaN).
-#[allow(clippy::manual_clamp)]
+/// `x` limited to `[lo, hi]` (`lo ≤ hi`), with NaN mapped to `lo` (`f32::clamp` would
+/// return NaN, and the controller must never output or store NaN).
+///
+/// Built from [`at_least`] and [`at_most`], compare-and-select, because on the Cortex-M4F
+/// (no `vmaxnm`) `f32::max`/`f32::min` are calls to `fmaxf`/`fminf`.
 #[inline]
 pub(crate) fn bound(x: f32, lo: f32, hi: f32) -> f32 {
-    x.max(lo).min(hi)
+    at_most(at_least(x, lo), hi)
+}
+
+/// `max(x, lo)` by compare-and-select: `lo` when `x` is NaN (as `f32::max` for a non-NaN
+/// `lo`), `x` when `lo` is NaN.
+#[inline]
+pub(crate) fn at_least(x: f32, lo: f32) -> f32 {
+    if x > lo { x } else { lo }
+}
+
+/// `min(x, hi)` by compare-and-select: `hi` when `x` is NaN (as `f32::min` for a non-NaN
+/// `hi`), `x` when `hi` is NaN.
+#[inline]
+pub(crate) fn at_most(x: f32, hi: f32) -> f32 {
+    if x < hi { x } else { hi }
 }
 
 #[cfg(test)]
 mod tests;
+
+#[cfg(test)]
+mod bound_tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    #[test]
+    fn nan_is_bounded_to_the_lower_end() {
+        assert_eq!(bound(f32::NAN, -2.0, 3.0), -2.0);
+        assert_eq!(bound(f32::NAN, 0.0, 1.0), 0.0);
+        assert_eq!(at_least(f32::NAN, 0.5), 0.5);
+        assert_eq!(at_most(f32::NAN, 0.5), 0.5);
+    }
+
+    #[test]
+    fn infinities_are_bounded_to_their_end() {
+        assert_eq!(bound(f32::INFINITY, -2.0, 3.0), 3.0);
+        assert_eq!(bound(f32::NEG_INFINITY, -2.0, 3.0), -2.0);
+    }
+
+    proptest! {
+        #[test]
+        fn bound_agrees_with_clamp_for_numbers(x in any::<f32>(), a in -1e6f32..1e6, b in -1e6f32..1e6) {
+            let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
+            if x.is_nan() {
+                prop_assert_eq!(bound(x, lo, hi), lo);
+            } else {
+                prop_assert_eq!(bound(x, lo, hi), x.clamp(lo, hi));
+                prop_assert_eq!(at_least(x, lo), x.max(lo));
+                prop_assert_eq!(at_most(x, hi), x.min(hi));
+            }
+        }
+    }
+}

@@ -76,8 +76,9 @@ impl Topology {
         let inv = inv_vdc;
         match self {
             Topology::ThreeLeg => {
-                let vmax = v.a.max(v.b).max(0.0);
-                let vmin = v.a.min(v.b).min(0.0);
+                // v is finite here: compare-and-select, no fmaxf/fminf calls.
+                let vmax = crate::at_least(crate::at_least(v.a, v.b), 0.0);
+                let vmin = crate::at_most(crate::at_most(v.a, v.b), 0.0);
                 let span = vmax - vmin;
                 let scale = if span > vdc { vdc / span } else { 1.0 };
                 let (va, vb) = (v.a * scale, v.b * scale);
@@ -86,7 +87,7 @@ impl Topology {
                 Modulated { duties: LegDuties(d), scale }
             }
             Topology::TwoHBridge => {
-                let m = v.a.abs().max(v.b.abs());
+                let m = crate::at_least(v.a.abs(), v.b.abs());
                 let scale = if m > vdc { vdc / m } else { 1.0 };
                 let ha = 0.5 * v.a * scale * inv;
                 let hb = 0.5 * v.b * scale * inv;

@@ -44,12 +44,57 @@
 //! gain follows `R̂` as well (`Ki = R̂·ωc`), which keeps the loop first order.
 //!
 //! Assumptions: `L` known; `R` known or trimmed at standstill; the applied voltage equals
-//! the commanded one (no dead time). Cost: one `atan2f`, one `sincosf`, about 60 flops
-//! per period.
+//! the commanded one (no dead time). Cost while the motor runs: two `libm::atan2f`
+//! (single precision throughout, FPU only: `atanf`'s polynomial in `f32`, checked by
+//! `firmware/qemu-m4/check-symbols.sh`), one `libm::sqrtf`, about 60 flops per period;
+//! the step adds one [`crate::trig::sin_cos_rad`] of `δ̂`. About 580 instructions of the
+//! estimated-angle step on the Cortex-M4F (`firmware/qemu-m4/instructions.txt`: 1,087
+//! against 506 for the patent's open loop).
 
 use crate::lowpass::LowPass;
 use crate::park::{Ab, Dq};
 use crate::pi::Pi;
+
+/// What the observer is built from ([`LoadAngleObserver::new`]): the motor, the drive's
+/// timing and the observer's own tuning. [`crate::Config::new`] fills it from the
+/// validated parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ObserverSettings {
+    /// Winding resistance `R` (the trim's starting value and its reference), Ω.
+    pub resistance_ohm: f32,
+    /// Winding inductance `L`, H.
+    pub inductance_h: f32,
+    /// Configured torque constant `Km` (the reference of `K̂m`), N·m/A.
+    pub km_nm_per_a: f32,
+    /// Control period `Ts`, s.
+    pub period_s: f32,
+    /// Corner of the fast back-EMF filter (`δ_fast`), Hz.
+    pub bandwidth_hz: f32,
+    /// Back-EMF below which the estimate is shrunk towards `δ = 0`, V.
+    pub emf_floor_v: f32,
+    /// Periods between computing a voltage and its being applied (0 or 1; more is
+    /// treated as 1).
+    pub delay_periods: u8,
+    /// Bandwidth of the closed current loop, Hz (sets how long a command change takes to
+    /// settle before the standstill resistance trim runs).
+    pub current_loop_bandwidth_hz: f32,
+}
+
+/// One period's inputs of [`LoadAngleObserver::update`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ObserverInput {
+    /// This period's current sample, A.
+    pub current: Ab,
+    /// `sin θc` of the command's electrical angle.
+    pub sin: f32,
+    /// `cos θc` of the command's electrical angle.
+    pub cos: f32,
+    /// The command's electrical advance per period, rad.
+    pub dtheta_e_rad: f32,
+    /// The commanded speed, rad/s (mechanical; its sign is the direction of rotation,
+    /// 0 is standstill).
+    pub speed_rad_s: f32,
+}
 
 /// Observer gains, fixed at configuration.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -68,7 +113,7 @@ pub struct LoadAngleObserver {
     /// Fraction of the resistance error corrected per period at standstill.
     pub(crate) r_trim_gain: f32,
     /// Periods between computing a voltage and its being applied (0 or 1).
-    pub(crate) delay_periods: usize,
+    pub(crate) delay_periods: u8,
     /// The configured torque constant, N·m/A.
     pub(crate) km: f32,
     /// Periods the current command must have held still before the standstill trim of
@@ -114,20 +159,19 @@ pub struct ObserverState {
 }
 
 impl LoadAngleObserver {
-    /// An observer for a winding of `r_ohm`, `l_h`, sampled every `period_s`, with the
-    /// voltage applied `delay_periods` (0 or 1) after it is computed, behind a first-order
-    /// current loop of `current_loop_bandwidth_hz`.
-    #[allow(clippy::too_many_arguments)]
-    pub fn new(
-        r_ohm: f32,
-        l_h: f32,
-        km: f32,
-        period_s: f32,
-        bandwidth_hz: f32,
-        e_floor_v: f32,
-        delay_periods: usize,
-        current_loop_bandwidth_hz: f32,
-    ) -> Self {
+    /// An observer for the winding, drive timing and tuning in `s` (see
+    /// [`ObserverSettings`]), behind a first-order current loop.
+    pub fn new(s: &ObserverSettings) -> Self {
+        let ObserverSettings {
+            resistance_ohm: r_ohm,
+            inductance_h: l_h,
+            km_nm_per_a: km,
+            period_s,
+            bandwidth_hz,
+            emf_floor_v: e_floor_v,
+            delay_periods,
+            current_loop_bandwidth_hz,
+        } = *s;
         LoadAngleObserver {
             r_ohm,
             l_h,
@@ -169,22 +213,19 @@ impl LoadAngleObserver {
         if st.km_hat > 0.0 { crate::bound(self.km / st.km_hat, 0.5, 2.0) } else { 1.0 }
     }
 
-    /// Takes this period's current sample `i` and the command's electrical angle `(sin θc,
-    /// cos θc)`, its advance per period `dtheta_e` (rad), the commanded speed sign and
-    /// the commanded speed in rad/s; returns the load-angle estimate. Call [`LoadAngleObserver::record_voltage`] with the
-    /// voltage computed in this period afterwards.
+    /// Takes this period's inputs (see [`ObserverInput`]) and returns the load-angle
+    /// estimate `δ̂`, electrical rad. Call [`LoadAngleObserver::record`] with the voltage
+    /// computed in this period afterwards.
     #[inline]
-    #[allow(clippy::too_many_arguments)]
-    pub fn update(
-        &self,
-        st: &mut ObserverState,
-        i: Ab,
-        sin: f32,
-        cos: f32,
-        dtheta_e: f32,
-        direction: f32,
-        speed_rad_s: f32,
-    ) -> f32 {
+    pub fn update(&self, st: &mut ObserverState, input: &ObserverInput) -> f32 {
+        let ObserverInput { current: i, sin, cos, dtheta_e_rad: dtheta_e, speed_rad_s } = *input;
+        let direction = if speed_rad_s > 0.0 {
+            1.0
+        } else if speed_rad_s < 0.0 {
+            -1.0
+        } else {
+            0.0
+        };
         if !st.started {
             st.started = true;
             st.last_current = i;
@@ -197,7 +238,9 @@ impl LoadAngleObserver {
             }
             return 0.0;
         }
-        let v = st.voltage_history[self.delay_periods];
+        // `& 1`: delay_periods is 0 or 1 (see `new`), and the mask lets the compiler drop the
+        // bounds check (and its panic path) from the step.
+        let v = st.voltage_history[usize::from(self.delay_periods & 1)];
         let (ia, ib) = (0.5 * (i.a + st.last_current.a), 0.5 * (i.b + st.last_current.b));
         st.last_current = i;
         // The frame at the middle of the period: θc − ½Δ (small-angle rotation).
@@ -239,7 +282,7 @@ impl LoadAngleObserver {
             let quiet = self.e_floor_v * self.e_floor_v + 9.0 * self.fast_noise_gain * st.residual_power_v2;
             if settled && c2 > 1e-4 && across * across < quiet * c2 {
                 let de = (st.e_dq.d * cmd.d + st.e_dq.q * cmd.q) / c2;
-                st.r_hat_ohm = (st.r_hat_ohm + self.r_trim_gain * de).max(0.25 * self.r_ohm).min(4.0 * self.r_ohm);
+                st.r_hat_ohm = crate::bound(st.r_hat_ohm + self.r_trim_gain * de, 0.25 * self.r_ohm, 4.0 * self.r_ohm);
             }
             st.delta_rad = 0.0;
         } else {
@@ -250,16 +293,18 @@ impl LoadAngleObserver {
             let e2 = d * d + q * q;
             let swing = fast - slow;
             self.slow.update(&mut st.swing_power_rad2, swing * swing);
-            let noise = self.fast_noise_gain * st.residual_power_v2 / e2.max(1e-12);
-            st.fast_weight = crate::bound(1.0 - noise / st.swing_power_rad2.max(1e-12), 0.0, 1.0);
+            let noise = self.fast_noise_gain * st.residual_power_v2 / crate::at_least(e2, 1e-12);
+            st.fast_weight = crate::bound(1.0 - noise / crate::at_least(st.swing_power_rad2, 1e-12), 0.0, 1.0);
             // Weak back-EMF at low speed: shrink towards the patent's law (δ = 0).
             let w = e2 / (e2 + self.e_floor_v * self.e_floor_v);
-            st.delta_rad = if cfg!(feature = "ablate-load-angle") { 0.0 } else { w * (slow + st.fast_weight * swing) };
+            // `--cfg stepdamp_ablate_load_angle` (scripts/ablation.sh only, never a drive):
+            // everything else runs, but the compensation is evaluated at θ_cmd.
+            st.delta_rad = if cfg!(stepdamp_ablate_load_angle) { 0.0 } else { w * (slow + st.fast_weight * swing) };
             // Gate on the back-EMF the command implies (a transient |ê| at a low command
             // speed would make the ratio explode), and bound each sample.
             let speed = speed_rad_s.abs();
             if self.km * speed > KM_MIN_EMF_FLOORS * self.e_floor_v {
-                let ratio = (libm::sqrtf(e2) / speed).max(0.5 * self.km).min(2.0 * self.km);
+                let ratio = crate::bound(libm::sqrtf(e2) / speed, 0.5 * self.km, 2.0 * self.km);
                 self.km_filter.update(&mut st.km_hat, ratio);
             }
         }
@@ -319,7 +364,22 @@ mod tests {
     const TS: f32 = 5e-5;
 
     fn observer(r: f32, km: f32) -> LoadAngleObserver {
-        LoadAngleObserver::new(r, L, km, TS, 500.0, 0.02 * r * 1.9, 0, 1500.0)
+        LoadAngleObserver::new(&ObserverSettings {
+            resistance_ohm: r,
+            inductance_h: L,
+            km_nm_per_a: km,
+            period_s: TS,
+            bandwidth_hz: 500.0,
+            emf_floor_v: 0.02 * r * 1.9,
+            delay_periods: 0,
+            current_loop_bandwidth_hz: 1500.0,
+        })
+    }
+
+    /// The inputs of one period: current `i`, command angle `th`, advance `dth`, speed `w`.
+    fn input(i: Ab, th: f32, dth: f32, w: f32) -> ObserverInput {
+        let (sin, cos) = libm::sincosf(th);
+        ObserverInput { current: i, sin, cos, dtheta_e_rad: dth, speed_rad_s: w }
     }
 
     fn rot(th: f32, x: Dq) -> Ab {
@@ -334,16 +394,8 @@ mod tests {
         let we = 50.0 * w;
         let dth = we * TS;
         let mut th = 0.0f32;
-        let dir = if w > 0.0 {
-            1.0
-        } else if w < 0.0 {
-            -1.0
-        } else {
-            0.0
-        };
         for _ in 0..n {
-            let (s, c) = libm::sincosf(th);
-            obs.update(st, rot(th, i), s, c, dth, dir, w);
+            obs.update(st, &input(rot(th, i), th, dth, w));
             // Voltage for the coming period, in the frame at its middle.
             let e = Dq { d: KM * w * libm::sinf(delta), q: KM * w * libm::cosf(delta) };
             let v = Dq { d: r_true * i.d + e.d - we * L * i.q, q: r_true * i.q + e.q + we * L * i.d };
@@ -360,6 +412,21 @@ mod tests {
             run(&obs, &mut st, w, delta, R, 20_000);
             assert!((st.delta_rad - delta).abs() < 0.01, "w {w}: {} vs {delta}", st.delta_rad);
         }
+    }
+
+    #[test]
+    fn the_ablation_build_forces_only_the_load_angle_to_zero() {
+        // `--cfg stepdamp_ablate_load_angle` (scripts/ablation.sh): δ̂ = 0, but the rest of
+        // the observer (here K̂m) runs as in the normal build.
+        let obs = observer(R, 0.8 * KM);
+        let mut st = ObserverState::default();
+        run(&obs, &mut st, 20.0, 0.3, R, 20_000);
+        if cfg!(stepdamp_ablate_load_angle) {
+            assert_eq!(st.delta_rad, 0.0);
+        } else {
+            assert!((st.delta_rad - 0.3).abs() < 0.01, "{}", st.delta_rad);
+        }
+        assert!((st.km_hat - KM).abs() < 0.01 * KM, "{}", st.km_hat);
     }
 
     #[test]
@@ -396,7 +463,7 @@ mod tests {
         let (mut sum, mut worst, mut count) = (0.0f32, 0.0f32, 0.0f32);
         for n in 0..40_000 {
             let meas = Dq { d: i.d + noise(), q: i.q + noise() };
-            obs.update(&mut st, rot(0.0, meas), 0.0, 1.0, 0.0, 0.0, 0.0);
+            obs.update(&mut st, &input(rot(0.0, meas), 0.0, 0.0, 0.0));
             let e = Dq { d: cmd.d - meas.d, q: cmd.q - meas.q };
             integ = Dq { d: integ.d + ki_ts * e.d, q: integ.q + ki_ts * e.q };
             let v = Dq { d: kp * e.d + integ.d, q: kp * e.q + integ.q };
@@ -431,7 +498,7 @@ mod tests {
         let mut st = ObserverState::default();
         run(&obs, &mut st, 0.0, 0.0, R, 1_000);
         assert!((st.r_hat_ohm - R).abs() < 0.001 * R, "{}", st.r_hat_ohm);
-        obs.update(&mut st, Ab { a: f32::NAN, b: 0.0 }, 0.0, 1.0, 0.0, 0.0, 0.0);
+        obs.update(&mut st, &input(Ab { a: f32::NAN, b: 0.0 }, 0.0, 0.0, 0.0));
         assert!((st.r_hat_ohm - R).abs() < 0.001 * R, "restart lost R̂: {}", st.r_hat_ohm);
         assert_eq!(obs.km_correction(&st), 1.0);
         assert_eq!(obs.km_correction(&ObserverState::default()), 1.0);
@@ -451,7 +518,7 @@ mod tests {
         let mut worst = 0.0f32;
         for n in 0..4_000 {
             let w = 0.5 * libm::expf(-(n as f32) * TS / 0.05);
-            obs.update(&mut st, rot(0.0, i), 0.0, 1.0, 0.0, 0.0, 0.0);
+            obs.update(&mut st, &input(rot(0.0, i), 0.0, 0.0, 0.0));
             let e = Dq { d: KM * w * libm::sinf(0.2), q: KM * w * libm::cosf(0.2) };
             obs.record(&mut st, rot(0.0, Dq { d: R * i.d + e.d, q: e.q }), i);
             worst = worst.max((st.r_hat_ohm - R).abs());
@@ -464,7 +531,7 @@ mod tests {
         let obs = observer(R, KM);
         let mut st = ObserverState::default();
         run(&obs, &mut st, 5.0, 0.05, R, 100);
-        obs.update(&mut st, Ab { a: f32::NAN, b: 0.0 }, 0.0, 1.0, 0.01, 1.0, 5.0);
+        obs.update(&mut st, &input(Ab { a: f32::NAN, b: 0.0 }, 0.0, 0.01, 5.0));
         assert!(st.delta_rad.is_finite() && st.km_hat.is_finite() && st.r_hat_ohm.is_finite());
         run(&obs, &mut st, 5.0, 0.05, R, 20_000);
         assert!((st.delta_rad - 0.05).abs() < 0.01);

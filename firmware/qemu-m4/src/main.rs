@@ -16,7 +16,9 @@ use core::panic::PanicInfo;
 
 use cortex_m_rt::{ExceptionFrame, entry, exception};
 use cortex_m_semihosting::{debug, hprintln};
-use stepdamp_core::{Compensation, Config, LegDuties, Measurement, Mode, Params, Position, State, Topology, step};
+use stepdamp_core::{
+    Compensation, Config, LegDuties, Measurement, Mode, Output, Params, Position, State, Topology, step,
+};
 
 /// Periods between printed lines.
 const PRINT_EVERY: u32 = 250;
@@ -66,6 +68,15 @@ fn encoder_count(theta: Position) -> u32 {
     (i128::from(theta.0) * i128::from(CPR)).div_euclid(units_per_rev) as u32
 }
 
+/// One controller step, kept out of line so that `check-symbols.sh` can walk its call
+/// graph and `count-instructions.sh` can count the instructions from its entry to its
+/// return. Every phase calls it [`PERIODS`] times in the order of `main`, which is how the
+/// count tells the modes apart.
+#[inline(never)]
+fn controller_step(cfg: &Config, st: &mut State, m: &Measurement) -> Output {
+    step(cfg, st, m)
+}
+
 /// FNV-1a over 32-bit words.
 struct Fnv(u32);
 
@@ -104,7 +115,7 @@ fn run(tag: &str, mode: Mode, compensation: Compensation, speed: fn(u32) -> f32,
             i_b_a: plant.i_b,
             encoder_count: encoder_count(theta),
         };
-        let out = step(&cfg, &mut st, &m);
+        let out = controller_step(&cfg, &mut st, &m);
         let d = out.duties.0;
         let iq = out.signals.i_dq_cmd.q;
         if !d.iter().all(|x| (0.0..=1.0).contains(x)) || !iq.is_finite() {
