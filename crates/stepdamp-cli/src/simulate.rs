@@ -4,7 +4,7 @@ use crate::Global;
 use crate::common::{AtomicFiles, load_motor, parent_dir, parse_compensations, parse_modes};
 use anyhow::{Context, Result, anyhow, bail};
 use std::path::PathBuf;
-use stepdamp_sim::runlog::LogRow;
+use stepdamp_sim::runlog::{FromRecord, LogRow};
 use stepdamp_sim::{
     ClosedLoop, ESTIMATED_IS_OPEN_LOOP_ONLY, MAX_SPEED_RAD_S, RunSpec, SimError, SimOptions, check_mode_compensation,
     check_same_hardware, run as run_spec,

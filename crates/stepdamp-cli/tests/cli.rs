@@ -96,7 +96,11 @@ fn motor_check_names_the_file_the_key_and_the_reason() {
     std::fs::write(&f, text).unwrap();
     let o = stepdamp(&["motor", "check", f.to_str().unwrap()]);
     assert_clean_error(&o, "motor.resistance_ohm");
-    assert!(stderr(&o).contains("m.toml") && stderr(&o).contains("> 0"));
+    assert!(
+        stderr(&o).contains("m.toml") && stderr(&o).contains("= -0.9: must be in [1e-3, 1000] Ω"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 #[test]

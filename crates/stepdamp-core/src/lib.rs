@@ -57,6 +57,7 @@ pub mod config;
 pub mod detent;
 pub mod drive;
 pub mod encoder;
+pub mod limits;
 pub mod lowpass;
 pub mod modulator;
 pub mod observer;
@@ -66,7 +67,7 @@ pub mod pi;
 pub use angle::{MicrostepAccumulator, Position};
 pub use config::{
     Compensation, Config, ConfigError, DriveSettings, MAX_ELECTRICAL_TURN_PER_PERIOD, Mode, MotorModel,
-    PATENT_MOTOR_DETENT, Params, ServoGains,
+    PATENT_MOTOR_DETENT, Params, Reason, ServoGains,
 };
 pub use detent::{Harmonic, HarmonicSeries, MAX_HARMONIC_ORDER};
 pub use drive::{CURRENT_SENSOR_FAULT_PERIODS, Measurement, Output, Signals, State, step};

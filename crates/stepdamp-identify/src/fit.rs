@@ -119,7 +119,7 @@ use crate::kinematics::{self, Kinematics};
 use crate::log::RunLog;
 use crate::lsq::{self, Design, LsqError};
 use std::f64::consts::{PI, TAU};
-use stepdamp_sim::Profile;
+use stepdamp_profile::Profile;
 
 /// Default harmonic orders of the fit.
 pub const DEFAULT_ORDERS: [u16; 3] = [1, 2, 4];

@@ -21,7 +21,10 @@
 
 pub mod closed_loop;
 pub mod plant;
-pub mod profile;
+/// Motor profiles: [`stepdamp_profile`], re-exported where the simulator's users found them.
+pub mod profile {
+    pub use stepdamp_profile::*;
+}
 pub mod runlog;
 pub mod scenario;
 pub mod sweep;

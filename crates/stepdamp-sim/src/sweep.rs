@@ -88,8 +88,6 @@ impl SweepSpec {
         controller: &Profile,
         controller_name: &str,
     ) -> Result<(), SimError> {
-        motor.validate(motor_name)?;
-        controller.validate(controller_name)?;
         check_same_hardware(motor, motor_name, controller, controller_name)?;
         let empty = |what: &'static str| Err(SimError::Option { what, reason: "the list is empty".to_string() });
         if self.modes.is_empty() {
