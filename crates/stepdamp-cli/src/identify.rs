@@ -78,7 +78,7 @@ struct FitArgs {
     ff_on: bool,
     /// Servo position-loop bandwidth of the logged runs in Hz (default: the profile's
     /// [servo] bandwidth_hz); only used for warnings.
-    #[arg(long, value_name = "HZ")]
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
     servo_bandwidth: Option<f64>,
     /// Name of the identified profile (default: base name + "-identified").
     #[arg(long)]
@@ -95,7 +95,7 @@ struct PlanArgs {
     #[arg(long, default_value = "1,2,4")]
     orders: String,
     /// Electrical periods of steady running per run.
-    #[arg(long, default_value_t = 40.0)]
+    #[arg(long, default_value_t = 40.0, allow_negative_numbers = true)]
     periods: f64,
 }
 
@@ -121,17 +121,17 @@ struct RunArgs {
     #[arg(long, default_value = "1,2,4")]
     orders: String,
     /// Electrical periods of steady running per run.
-    #[arg(long, default_value_t = 40.0)]
+    #[arg(long, default_value_t = 40.0, allow_negative_numbers = true)]
     periods: f64,
     /// Current-sensor noise, standard deviation in A.
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, default_value_t = 0.01, allow_negative_numbers = true)]
     current_noise: f64,
     /// Seed of the noise generators.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     seed: u64,
     /// Most refinement iterations.
-    #[arg(long, default_value_t = 3)]
-    iterations: usize,
+    #[arg(long, default_value_t = 3, allow_negative_numbers = true)]
+    iterations: i64,
 }
 
 /// `stepdamp identify static`.
@@ -384,7 +384,7 @@ fn run_run_cmd(a: RunArgs, global: &Global) -> Result<()> {
     if a.report && !a.refine {
         bail!("--report needs --refine (it plots the identification)");
     }
-    if a.iterations == 0 || a.iterations > 20 {
+    if !(1..=20).contains(&a.iterations) {
         bail!("--iterations {}: must be in 1..=20", a.iterations);
     }
     let po = PlanOptions { current_noise_a: a.current_noise, seed: a.seed, ..plan_options(&orders, a.periods)? };
@@ -457,12 +457,12 @@ fn simulate_and_identify(
     out!("{}", fit_table(&f0, &motor.name));
     let start = Model::from_fit(&f0);
     let ro = RefineOptions {
-        max_iterations: a.iterations,
+        max_iterations: a.iterations as usize,
         current_noise_a: a.current_noise,
         seed: a.seed,
         ..RefineOptions::default()
     };
-    let pb = progress((p.runs.len() * (a.iterations + 1)) as u64, global.quiet, "refining");
+    let pb = progress((p.runs.len() * (a.iterations as usize + 1)) as u64, global.quiet, "refining");
     let r = refine(motor, p, &start, Some(&f0), &fo, &ro, &|| pb.inc(1))?;
     pb.finish_and_clear();
     out!("{}", refine_table(&r));

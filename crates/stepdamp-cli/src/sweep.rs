@@ -36,8 +36,8 @@ pub struct SweepArgs {
     #[arg(long, default_value_t = 40.0, allow_negative_numbers = true)]
     pub to: f64,
     /// Number of speeds.
-    #[arg(long, default_value_t = 60)]
-    pub points: usize,
+    #[arg(long, default_value_t = 60, allow_negative_numbers = true)]
+    pub points: i64,
     /// Simulated time per run in s (50 ms standstill, 0.1 s ramp, error measured over the
     /// last ≤ 0.5 s in whole electrical periods, at least 50 ms after the ramp).
     #[arg(long, default_value_t = 1.5, allow_negative_numbers = true)]
@@ -49,10 +49,10 @@ pub struct SweepArgs {
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub current_noise: f64,
     /// RK4 steps per PWM period.
-    #[arg(long, default_value_t = 2)]
-    pub substeps: u32,
+    #[arg(long, default_value_t = 2, allow_negative_numbers = true)]
+    pub substeps: i64,
     /// Seed of the noise generators.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     pub seed: u64,
     /// Output directory: sweep.csv, sweep.svg, sweep.png.
     #[arg(long, default_value = "out")]
@@ -88,7 +88,7 @@ pub fn spec_of(a: &SweepArgs) -> Result<SweepSpec> {
     if !(a.current_noise.is_finite() && a.current_noise >= 0.0) {
         bail!("--current-noise {}: must be a finite number ≥ 0 A", a.current_noise);
     }
-    if a.substeps == 0 || a.substeps > 1000 {
+    if !(1..=1000).contains(&a.substeps) {
         bail!("--substeps {}: must be in 1..=1000", a.substeps);
     }
     let modes = parse_modes(&a.mode)?;
@@ -98,12 +98,12 @@ pub fn spec_of(a: &SweepArgs) -> Result<SweepSpec> {
     }
     let window = (a.duration / 3.0).min(0.5);
     Ok(SweepSpec {
-        speeds_rad_s: linear_grid(a.from, a.to, a.points),
+        speeds_rad_s: linear_grid(a.from, a.to, a.points as usize),
         modes,
         compensations,
         run: RunSpec { speed_rad_s: a.from, dwell_s: 0.05, ramp_s: 0.1, duration_s: a.duration, window_s: window },
         options: SimOptions {
-            substeps: a.substeps,
+            substeps: a.substeps as u32,
             current_noise_a: a.current_noise,
             seed: a.seed,
             load_torque_nm: a.load_torque,
