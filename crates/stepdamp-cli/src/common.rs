@@ -13,6 +13,23 @@ pub fn load_motor(name_or_path: &str) -> Result<Profile> {
     Profile::load(name_or_path).map_err(|e| anyhow!("{e}"))
 }
 
+/// How a command prints its result.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Format {
+    /// For people (the result type's `Display`).
+    #[default]
+    Text,
+    /// One JSON object (the result type's `Serialize`), for scripts.
+    Json,
+}
+
+/// Prints `value` as one line of JSON on standard output.
+pub fn print_json(value: &impl serde::Serialize) -> Result<()> {
+    let text = serde_json::to_string(value).context("cannot serialise the result")?;
+    outln!("{text}");
+    Ok(())
+}
+
 /// Parses `open-loop`, `servo` or `both`.
 pub fn parse_modes(s: &str) -> Result<Vec<Mode>> {
     let mut out = Vec::new();

@@ -6,7 +6,7 @@ use anyhow::{Context, Result, anyhow, bail};
 use std::path::PathBuf;
 use stepdamp_sim::runlog::{FromRecord, LogRow};
 use stepdamp_sim::{
-    ClosedLoop, ESTIMATED_IS_OPEN_LOOP_ONLY, MAX_SPEED_RAD_S, RunSpec, SimError, SimOptions, check_mode_compensation,
+    ClosedLoop, ESTIMATED_IS_OPEN_LOOP_ONLY, RunSpec, SimError, SimOptions, check_mode_compensation,
     check_same_hardware, run as run_spec,
 };
 
@@ -71,9 +71,6 @@ pub fn run(a: SimulateArgs, _g: &Global) -> Result<()> {
     };
     check_mode_compensation(*mode, *comp)
         .map_err(|_| anyhow!("--mode servo --compensation estimated: {ESTIMATED_IS_OPEN_LOOP_ONLY}"))?;
-    if !a.speed.is_finite() || a.speed == 0.0 || a.speed.abs() > MAX_SPEED_RAD_S {
-        bail!("--speed {}: must be a non-zero speed in rad/s, |speed| ≤ {MAX_SPEED_RAD_S}", a.speed);
-    }
     if !(a.duration.is_finite() && a.duration > 0.0 && a.duration <= 1000.0) {
         bail!("--duration {}: must be in (0, 1000] s", a.duration);
     }

@@ -35,7 +35,11 @@ fn negative_numbers_are_range_checked_with_our_messages() {
     assert_refused(d, &["simulate", "--speed", "5", "--dwell", "-1"], &["--dwell -1"]);
     assert_refused(d, &["simulate", "--speed", "5", "--ramp", "-0.5"], &["--ramp -0.5"]);
     assert_refused(d, &["identify", "plan", "--motor", "patent-motor", "--periods", "-3"], &["--periods -3"]);
-    assert_refused(d, &["identify", "run", "--motor", "patent-motor", "--out", "out", "--iterations", "-2", "--refine"], &["--iterations -2", "1..=20"]);
+    assert_refused(
+        d,
+        &["identify", "run", "--motor", "patent-motor", "--out", "out", "--iterations", "-2", "--refine"],
+        &["--iterations -2", "1..=20"],
+    );
 }
 
 #[test]
@@ -68,7 +72,11 @@ fn implausible_profiles_are_refused_naming_file_key_value_and_range() {
     let text = String::from_utf8_lossy(&shown.stdout).into_owned();
     for (from, to, want) in [
         ("km_nm_per_a = 0.3", "km_nm_per_a = 1e308", "m.toml: motor.km_nm_per_a = 1e308: must be in [1e-3, 50] N·m/A"),
-        ("inertia_kg_m2 = 0.00004", "inertia_kg_m2 = 1e-308", "motor.inertia_kg_m2 = 1e-308: must be in [1e-8, 1] kg·m²"),
+        (
+            "inertia_kg_m2 = 0.00004",
+            "inertia_kg_m2 = 1e-308",
+            "motor.inertia_kg_m2 = 1e-308: must be in [1e-8, 1] kg·m²",
+        ),
         ("holding_current_a = 1.9", "holding_current_a = 0.0", "drive.holding_current_a = 0: must be in (0, 100] A"),
     ] {
         assert!(text.contains(from), "{from} not in {text}");

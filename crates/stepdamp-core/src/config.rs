@@ -73,8 +73,10 @@ impl ServoGains {
     }
 }
 
-/// Control mode.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+/// Control mode. Named `open-loop` and `servo` in tables, profiles and on the command line
+/// ([`Mode::name`], `FromStr`, serde with the `serde` feature).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize), serde(rename_all = "kebab-case"))]
 pub enum Mode {
     /// Microstepping without an encoder: Park at `θ_cmd`, `i_d = I_hold` (eqs. 7–8).
     #[default]
@@ -100,8 +102,10 @@ pub struct Params<'a> {
     pub compensation: Compensation,
 }
 
-/// Detent compensation.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+/// Detent compensation. Named `off`, `patent` and `estimated` ([`Compensation::name`],
+/// `FromStr`, serde with the `serde` feature).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize), serde(rename_all = "kebab-case"))]
 pub enum Compensation {
     /// None (and no friction feed-forward in servo mode).
     #[default]
@@ -114,6 +118,63 @@ pub enum Compensation {
     /// rotor's). Servo mode: the same as `Patent` (the encoder is the best angle there).
     Estimated,
 }
+
+/// A name that is none of a choice's names.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct UnknownName {
+    /// What was being named, e.g. `"mode"`.
+    pub what: &'static str,
+    /// The names allowed, comma-separated.
+    pub expected: &'static str,
+}
+
+impl core::fmt::Display for UnknownName {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "unknown {}: expected {}", self.what, self.expected)
+    }
+}
+
+impl core::error::Error for UnknownName {}
+
+/// Names, `FromStr` and `Display` of a choice, from one table.
+macro_rules! named_choice {
+    ($ty:ident, $what:literal, $expected:literal, [$($v:ident => $n:literal),+ $(,)?]) => {
+        impl $ty {
+            /// Every choice, in table order.
+            pub const ALL: &'static [$ty] = &[$($ty::$v),+];
+
+            /// The name in tables, profiles and on the command line.
+            pub const fn name(self) -> &'static str {
+                match self {
+                    $($ty::$v => $n),+
+                }
+            }
+        }
+
+        impl core::str::FromStr for $ty {
+            type Err = UnknownName;
+            fn from_str(s: &str) -> Result<Self, UnknownName> {
+                match s {
+                    $($n => Ok($ty::$v),)+
+                    _ => Err(UnknownName { what: $what, expected: $expected }),
+                }
+            }
+        }
+
+        impl core::fmt::Display for $ty {
+            fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+                f.write_str(self.name())
+            }
+        }
+    };
+}
+
+named_choice!(Mode, "mode", "open-loop, servo", [OpenLoop => "open-loop", Servo => "servo"]);
+named_choice!(Compensation, "compensation", "off, patent, estimated", [
+    Off => "off",
+    Patent => "patent",
+    Estimated => "estimated",
+]);
 
 /// Detent harmonics of the `patent-motor` (design.md §6–§7).
 pub const PATENT_MOTOR_DETENT: [Harmonic; 3] = [
@@ -286,6 +347,14 @@ pub struct Config {
 /// describe the rotation unambiguously, including the one-period computation delay.
 pub const MAX_ELECTRICAL_TURN_PER_PERIOD: f64 = 0.25;
 
+/// Largest commanded speed magnitude in rad/s (mechanical) for `pole_pairs` and control
+/// period `period_s`: [`MAX_ELECTRICAL_TURN_PER_PERIOD`] of an electrical turn per period,
+/// `(π/2)/(Nr·Ts)`. [`Config::max_speed_rad_s`] is this; a simulator that refuses faster
+/// commands uses it too. Pass the period the controller uses, `1/pwm_hz` in `f32`.
+pub fn max_speed_rad_s(pole_pairs: u16, period_s: f32) -> f32 {
+    (core::f64::consts::TAU * MAX_ELECTRICAL_TURN_PER_PERIOD / (f64::from(pole_pairs) * f64::from(period_s))) as f32
+}
+
 fn finite(field: &'static str, input: f32, derived: f32) -> Result<(), ConfigError> {
     if derived.is_finite() {
         Ok(())
@@ -408,8 +477,7 @@ impl Config {
             friction_a: if on { fs / km } else { 0.0 },
             current_sample_limit_a: 100.0 * limit,
             inv_bus_voltage: 1.0 / vdc,
-            max_speed_rad_s: (core::f64::consts::TAU * MAX_ELECTRICAL_TURN_PER_PERIOD
-                / (f64::from(m.pole_pairs) * f64::from(ts))) as f32,
+            max_speed_rad_s: max_speed_rad_s(m.pole_pairs, ts),
         };
         cfg.check_finite(p)?;
         Ok(cfg)

@@ -67,7 +67,7 @@ pub mod pi;
 pub use angle::{MicrostepAccumulator, Position};
 pub use config::{
     Compensation, Config, ConfigError, DriveSettings, MAX_ELECTRICAL_TURN_PER_PERIOD, Mode, MotorModel,
-    PATENT_MOTOR_DETENT, Params, Reason, ServoGains,
+    PATENT_MOTOR_DETENT, Params, Reason, ServoGains, UnknownName, max_speed_rad_s,
 };
 pub use detent::{Harmonic, HarmonicSeries, MAX_HARMONIC_ORDER};
 pub use drive::{CURRENT_SENSOR_FAULT_PERIODS, Measurement, Output, Signals, State, step};

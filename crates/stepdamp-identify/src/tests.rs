@@ -191,8 +191,9 @@ fn open_loop_reductions_db(motor: &Profile, controller: &Profile) -> Vec<(u16, f
             options: SimOptions::default(),
         };
         let rows = sweep(motor, controller, &spec, &|| {}).unwrap();
-        let peak =
-            |comp: &str| rows.iter().filter(|r| r.compensation == comp).map(|r| r.vel_err_pp_rad_s).fold(0.0, f64::max);
+        let peak = |comp: &str| {
+            rows.iter().filter(|r| r.compensation.name() == comp).map(|r| r.vel_err_pp_rad_s).fold(0.0, f64::max)
+        };
         out.push((k, 20.0 * (peak("off") / peak("patent")).log10()));
     }
     out

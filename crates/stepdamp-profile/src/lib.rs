@@ -27,6 +27,7 @@
 
 pub mod data;
 pub mod error;
+pub mod figures;
 pub mod load;
 pub mod profile;
 pub mod runlog;
@@ -34,8 +35,9 @@ mod validate;
 
 pub use data::{DetentTerm, DriveSection, EncoderSection, MotorSection, ProfileData, ServoSection, TopologyName};
 pub use error::ProfileError;
+pub use figures::{MotorFigures, MotorShow, ResonanceSpeed};
 pub use load::{MotorRef, PRESETS, preset_text};
-pub use profile::Profile;
+pub use profile::{Profile, TYPICAL_DETENT_ORDERS};
 pub use runlog::LogRow;
 pub use stepdamp_core::limits;
 

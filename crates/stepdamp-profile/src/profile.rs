@@ -7,6 +7,12 @@ use stepdamp_core::{
     Compensation, Config, ConfigError, DriveSettings, Harmonic, Mode, MotorModel, Params, ServoGains, Topology,
 };
 
+/// The detent orders of a typical hybrid stepper (1.8°, 50 teeth): the 4th harmonic of the
+/// electrical angle (the reluctance detent of two phases), the 2nd and the 1st (stator and
+/// rotor asymmetries). Identification fits them by default; a profile without detent has
+/// its resonances at these orders.
+pub const TYPICAL_DETENT_ORDERS: [u16; 3] = [1, 2, 4];
+
 /// A motor profile whose every key is within its physical range
 /// ([`stepdamp_core::limits`]) and whose derived quantities (natural frequency, resonance
 /// speeds, servo gains, the controller's configuration in every mode) are finite. Only
@@ -79,6 +85,17 @@ impl Profile {
     /// Damping ratio of the open-loop rotor from viscous friction: `D / (2 J ω_n)`.
     pub fn damping_ratio(&self) -> f64 {
         self.motor.viscous_nm_s_per_rad / (2.0 * self.motor.inertia_kg_m2 * self.natural_frequency_rad_s())
+    }
+
+    /// The orders whose resonance speeds matter: the profile's detent orders, highest first,
+    /// or [`TYPICAL_DETENT_ORDERS`] when it lists no detent.
+    pub fn resonance_orders(&self) -> Vec<u16> {
+        let mut orders: Vec<u16> = self.motor.detent.iter().map(|h| h.order).collect();
+        if orders.is_empty() {
+            orders = TYPICAL_DETENT_ORDERS.to_vec();
+        }
+        orders.sort_unstable_by(|a, b| b.cmp(a));
+        orders
     }
 
     /// Detent orders, largest amplitude first.

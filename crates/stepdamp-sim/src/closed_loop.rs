@@ -20,21 +20,14 @@ use stepdamp_core::{
 
 pub use stepdamp_core::Compensation;
 
-/// Name of a compensation in tables and on the command line.
+/// Name of a compensation in tables and on the command line ([`Compensation::name`]).
 pub fn compensation_name(c: Compensation) -> &'static str {
-    match c {
-        Compensation::Off => "off",
-        Compensation::Patent => "patent",
-        Compensation::Estimated => "estimated",
-    }
+    c.name()
 }
 
-/// Name of a control mode in tables and on the command line.
+/// Name of a control mode in tables and on the command line ([`Mode::name`]).
 pub fn mode_name(m: Mode) -> &'static str {
-    match m {
-        Mode::OpenLoop => "open-loop",
-        Mode::Servo => "servo",
-    }
+    m.name()
 }
 
 /// Simulation options (the physics of the drive that a profile does not describe).

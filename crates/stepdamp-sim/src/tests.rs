@@ -26,7 +26,7 @@ fn readme_sweep() -> &'static (Vec<f64>, Vec<SweepRow>) {
 }
 
 fn lane<'a>(rows: &'a [SweepRow], mode: &str, comp: &str) -> Vec<&'a SweepRow> {
-    rows.iter().filter(|r| r.mode == mode && r.compensation == comp).collect()
+    rows.iter().filter(|r| r.mode.name() == mode && r.compensation.name() == comp).collect()
 }
 
 /// Largest peak-to-peak error within ±10 % of `speed`.
