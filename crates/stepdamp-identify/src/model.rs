@@ -69,6 +69,13 @@ impl Model {
         })
     }
 
+    /// The torque the detent needs from the motor at electrical angle `theta_e`:
+    /// `Σ A_k sin(k θe + φ_k)`, N·m (the feed-forward of servo mode). Identification's only
+    /// evaluation of the series (the controller's, in `f32`, is `stepdamp_core::HarmonicSeries`).
+    pub fn series_nm(&self, theta_e: f64) -> f64 {
+        self.detent.iter().map(|h| h.amplitude_nm * (f64::from(h.order) * theta_e + h.phase_rad).sin()).sum()
+    }
+
     /// RMS over an electrical period of `Σ A_k sin(kθe + φ_k)`: `√(Σ A_k²/2)`, N·m.
     pub fn ripple_rms_nm(&self) -> f64 {
         (self.detent.iter().map(|h| h.amplitude_nm * h.amplitude_nm).sum::<f64>() / 2.0).sqrt()
@@ -95,6 +102,11 @@ impl Model {
             .sum();
         (ss / 2.0).sqrt()
     }
+}
+
+/// [`Model::series_nm`] as a function.
+pub fn series_nm(m: &Model, theta_e: f64) -> f64 {
+    m.series_nm(theta_e)
 }
 
 #[cfg(test)]
