@@ -13,40 +13,56 @@ pub fn load_motor(name_or_path: &str) -> Result<Profile> {
     Profile::load(name_or_path).map_err(|e| anyhow!("{e}"))
 }
 
-/// Parses `open-loop`, `servo` or `both`.
+/// How a command prints its result.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Format {
+    /// For people (the result type's `Display`).
+    #[default]
+    Text,
+    /// One JSON object (the result type's `Serialize`), for scripts.
+    Json,
+}
+
+/// Prints `value` as one line of JSON on standard output.
+pub fn print_json(value: &impl serde::Serialize) -> Result<()> {
+    let text = serde_json::to_string(value).context("cannot serialise the result")?;
+    outln!("{text}");
+    Ok(())
+}
+
+/// Parses a comma list of modes: the core's names (`open-loop`, `servo`; [`Mode::name`]),
+/// the aliases `openloop` and `ol`, and `both`.
 pub fn parse_modes(s: &str) -> Result<Vec<Mode>> {
     let mut out = Vec::new();
     for part in s.split(',').map(str::trim) {
         match part {
-            "open-loop" | "openloop" | "ol" => push_unique(&mut out, Mode::OpenLoop),
-            "servo" => push_unique(&mut out, Mode::Servo),
-            "both" => {
-                push_unique(&mut out, Mode::OpenLoop);
-                push_unique(&mut out, Mode::Servo);
-            }
-            _ => bail!("--mode '{part}': expected open-loop, servo or both (a comma list is allowed)"),
+            "both" => Mode::ALL.iter().for_each(|&m| push_unique(&mut out, m)),
+            "openloop" | "ol" => push_unique(&mut out, Mode::OpenLoop),
+            name => push_unique(
+                &mut out,
+                name.parse().map_err(|e| anyhow!("--mode '{part}': {e} or both (a comma list is allowed)"))?,
+            ),
         }
     }
     Ok(out)
 }
 
-/// Parses a comma list of `off`, `patent` (alias `on`), `estimated`, `angle`, `table`, or
-/// `both` (= `off,patent`).
+/// Parses a comma list of compensations: the core's names (`off`, `patent`, `estimated`,
+/// `angle`, `table`; [`Compensation::name`]), the alias `on` (= `patent`), and `both` (= `off,patent`).
 pub fn parse_compensations(s: &str) -> Result<Vec<Compensation>> {
     let mut out = Vec::new();
     for part in s.split(',').map(str::trim) {
         match part {
-            "off" => push_unique(&mut out, Compensation::Off),
-            "patent" | "on" => push_unique(&mut out, Compensation::Patent),
-            "estimated" => push_unique(&mut out, Compensation::Estimated),
-            "angle" => push_unique(&mut out, Compensation::Angle),
-            "table" => push_unique(&mut out, Compensation::Table),
+            "on" => push_unique(&mut out, Compensation::Patent),
             "both" => {
                 push_unique(&mut out, Compensation::Off);
                 push_unique(&mut out, Compensation::Patent);
             }
-            _ => bail!(
-                "--compensation '{part}': expected off, patent (or on), estimated, angle, table, or both (= off,patent); a comma list is allowed"
+            name => push_unique(
+                &mut out,
+                name.parse().map_err(|e| {
+                    anyhow!("--compensation '{part}': {e} (or on = patent, both = off,patent); a comma list is allowed")
+                })?,
             ),
         }
     }
@@ -212,7 +228,15 @@ mod tests {
         let e = parse_compensations("maybe").unwrap_err().to_string();
         assert!(e.contains("maybe"), "{e}");
         assert_eq!(parse_modes("both").unwrap(), vec![Mode::OpenLoop, Mode::Servo]);
-        assert!(parse_modes("closed").is_err());
+        let e = parse_modes("closed").unwrap_err().to_string();
+        assert!(e.contains("'closed'") && e.contains("expected open-loop, servo or both"), "{e}");
+        // The core's names are the CLI's.
+        for &m in Mode::ALL {
+            assert_eq!(parse_modes(m.name()).unwrap(), vec![m]);
+        }
+        for &c in Compensation::ALL {
+            assert_eq!(parse_compensations(c.name()).unwrap(), vec![c]);
+        }
     }
 
     #[test]

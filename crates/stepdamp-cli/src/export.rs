@@ -81,12 +81,8 @@ pub fn run_export(a: ExportArgs, _g: &Global) -> Result<()> {
         bail!("--duration {}: 0 (no prediction) or 0.5..=100 s", a.duration);
     }
     let c = Correction::from_profile(&p, a.current)?;
-    let scaled = {
-        // The simulation runs at the exported current.
-        let mut q = p.clone();
-        q.drive.holding_current_a = c.holding_current_a;
-        q
-    };
+    // The simulation runs at the exported current.
+    let scaled = p.edited(&a.motor, |d| d.drive.holding_current_a = c.holding_current_a)?;
     let (comp, table) = match a.format {
         Format::Prusa => {
             let axis = match a.axis.as_deref() {
@@ -134,7 +130,7 @@ pub fn run_export(a: ExportArgs, _g: &Global) -> Result<()> {
         if a.format == Format::KlipperTmc {
             // What the coverage report predicts: the continuous angle law carrying exactly
             // the part of the model the table can hold (the table's rounding aside).
-            let covered = predict::config(&tmc::covered_profile(&scaled), Compensation::Angle, None)?;
+            let covered = predict::config(&tmc::covered_profile(&scaled)?, Compensation::Angle, None)?;
             comps.push(("open loop, angle law on the covered part only".to_string(), covered));
         }
         for p in predict::predict_against(&scaled, off, &comps, a.duration)? {

@@ -78,7 +78,7 @@ struct FitArgs {
     ff_on: bool,
     /// Servo position-loop bandwidth of the logged runs in Hz (default: the profile's
     /// [servo] bandwidth_hz); only used for warnings.
-    #[arg(long, value_name = "HZ")]
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
     servo_bandwidth: Option<f64>,
     /// Name of the identified profile (default: base name + "-identified").
     #[arg(long)]
@@ -95,7 +95,7 @@ struct PlanArgs {
     #[arg(long, default_value = "1,2,4")]
     orders: String,
     /// Electrical periods of steady running per run.
-    #[arg(long, default_value_t = 40.0)]
+    #[arg(long, default_value_t = 40.0, allow_negative_numbers = true)]
     periods: f64,
 }
 
@@ -121,17 +121,17 @@ struct RunArgs {
     #[arg(long, default_value = "1,2,4")]
     orders: String,
     /// Electrical periods of steady running per run.
-    #[arg(long, default_value_t = 40.0)]
+    #[arg(long, default_value_t = 40.0, allow_negative_numbers = true)]
     periods: f64,
     /// Current-sensor noise, standard deviation in A.
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, default_value_t = 0.01, allow_negative_numbers = true)]
     current_noise: f64,
     /// Seed of the noise generators.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     seed: u64,
     /// Most refinement iterations.
-    #[arg(long, default_value_t = 3)]
-    iterations: usize,
+    #[arg(long, default_value_t = 3, allow_negative_numbers = true)]
+    iterations: i64,
 }
 
 /// `stepdamp identify static`.
@@ -384,7 +384,7 @@ fn run_run_cmd(a: RunArgs, global: &Global) -> Result<()> {
     if a.report && !a.refine {
         bail!("--report needs --refine (it plots the identification)");
     }
-    if a.iterations == 0 || a.iterations > 20 {
+    if !(1..=20).contains(&a.iterations) {
         bail!("--iterations {}: must be in 1..=20", a.iterations);
     }
     let po = PlanOptions { current_noise_a: a.current_noise, seed: a.seed, ..plan_options(&orders, a.periods)? };
@@ -457,12 +457,12 @@ fn simulate_and_identify(
     out!("{}", fit_table(&f0, &motor.name));
     let start = Model::from_fit(&f0);
     let ro = RefineOptions {
-        max_iterations: a.iterations,
+        max_iterations: a.iterations as usize,
         current_noise_a: a.current_noise,
         seed: a.seed,
         ..RefineOptions::default()
     };
-    let pb = progress((p.runs.len() * (a.iterations + 1)) as u64, global.quiet, "refining");
+    let pb = progress((p.runs.len() * (a.iterations as usize + 1)) as u64, global.quiet, "refining");
     let r = refine(motor, p, &start, Some(&f0), &fo, &ro, &|| pb.inc(1))?;
     pb.finish_and_clear();
     out!("{}", refine_table(&r));
@@ -477,7 +477,7 @@ fn simulate_and_identify(
         }
     }
     let summary = a.out.join(SUMMARY_FILE);
-    write_atomic(&summary, refine_summary_csv(motor, &f0, &r).as_bytes())?;
+    write_atomic(&summary, refine_summary_csv(motor, &f0, &r)?.as_bytes())?;
     outln!(
         "wrote {} (simulated motor, feed-forward-off fit and refined values; ripple before/after)",
         summary.display()
@@ -497,52 +497,58 @@ const SUMMARY_FILE: &str = "refine-summary.csv";
 /// `periodic_ripple_rms` (the loop effort's ripple over orders 1–16: `identified` = before,
 /// feed-forward off; `refined` = after, the refined estimate fed forward) and
 /// `ripple_reduction` (before / after, in `refined`). Empty cells: not applicable.
-fn refine_summary_csv(motor: &Profile, f0: &Fit, r: &Refinement) -> String {
-    let mut s = String::from("quantity,order,unit,motor,identified,refined\n");
+fn refine_summary_csv(motor: &Profile, f0: &Fit, r: &Refinement) -> Result<String> {
+    let e6 = |v: f64| format!("{v:.6e}");
+    let cell = |v: Option<f64>, f: &dyn Fn(f64) -> String| v.map_or(String::new(), f);
+    let mut rows: Vec<[String; 6]> = Vec::new();
+    let mut row = |q: &str, order: Option<u16>, unit: &str, m: String, i: String, r: String| {
+        rows.push([q.to_string(), order.map_or(String::new(), |k| k.to_string()), unit.to_string(), m, i, r]);
+    };
     let start = Model::from_fit(f0);
     let find = |m: &Model, k: u16| m.detent.iter().find(|h| h.order == k).copied();
     let truth = Model::of_profile(motor);
     for h in &r.model.detent {
         let (t, i) = (find(&truth, h.order), find(&start, h.order));
-        let cell = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.6e}"));
-        let _ = writeln!(
-            s,
-            "amplitude,{},N·m,{},{},{:.6e}",
-            h.order,
-            cell(t.map(|t| t.amplitude_nm).or(Some(0.0))),
-            cell(i.map(|i| i.amplitude_nm)),
-            h.amplitude_nm
-        );
-        let _ = writeln!(
-            s,
-            "phase,{},rad,{},{},{:.6}",
-            h.order,
-            t.map_or(String::new(), |t| format!("{:.6}", t.phase_rad)),
-            i.map_or(String::new(), |i| format!("{:.6}", i.phase_rad)),
-            h.phase_rad
+        let amp = |h: Option<stepdamp_profile::DetentTerm>| h.map(|h| h.amplitude_nm);
+        let phase = |v: f64| format!("{v:.6}");
+        row("amplitude", Some(h.order), "N·m", cell(amp(t).or(Some(0.0)), &e6), cell(amp(i), &e6), e6(h.amplitude_nm));
+        row(
+            "phase",
+            Some(h.order),
+            "rad",
+            cell(t.map(|t| t.phase_rad), &phase),
+            cell(i.map(|i| i.phase_rad), &phase),
+            phase(h.phase_rad),
         );
     }
-    let _ = writeln!(
-        s,
-        "coulomb_friction,,N·m,{:.6e},{:.6e},{:.6e}",
-        motor.motor.coulomb_friction_nm, start.coulomb_friction_nm, r.model.coulomb_friction_nm
+    let m = &motor.motor;
+    let refined_j = r.model.inertia_kg_m2.unwrap_or(f0.inertia_used);
+    row(
+        "coulomb_friction",
+        None,
+        "N·m",
+        e6(m.coulomb_friction_nm),
+        e6(start.coulomb_friction_nm),
+        e6(r.model.coulomb_friction_nm),
     );
-    let _ = writeln!(
-        s,
-        "viscous_friction,,N·m·s/rad,{:.6e},{:.6e},{:.6e}",
-        motor.motor.viscous_nm_s_per_rad, start.viscous_nm_s_per_rad, r.model.viscous_nm_s_per_rad
+    row(
+        "viscous_friction",
+        None,
+        "N·m·s/rad",
+        e6(m.viscous_nm_s_per_rad),
+        e6(start.viscous_nm_s_per_rad),
+        e6(r.model.viscous_nm_s_per_rad),
     );
-    let _ = writeln!(
-        s,
-        "inertia,,kg·m²,{:.6e},{:.6e},{:.6e}",
-        motor.motor.inertia_kg_m2,
-        f0.inertia_used,
-        r.model.inertia_kg_m2.unwrap_or(f0.inertia_used)
-    );
+    row("inertia", None, "kg·m²", e6(m.inertia_kg_m2), e6(f0.inertia_used), e6(refined_j));
     let (before, after) = r.ripple_before_after_nm();
-    let _ = writeln!(s, "periodic_ripple_rms,,N·m,,{before:.6e},{after:.6e}");
-    let _ = writeln!(s, "ripple_reduction,,ratio,,,{:.1}", before / after.max(1e-15));
-    s
+    row("periodic_ripple_rms", None, "N·m", String::new(), e6(before), e6(after));
+    row("ripple_reduction", None, "ratio", String::new(), String::new(), format!("{:.1}", before / after.max(1e-15)));
+    let mut w = csv::Writer::from_writer(Vec::new());
+    w.write_record(["quantity", "order", "unit", "motor", "identified", "refined"])?;
+    for r in &rows {
+        w.write_record(r)?;
+    }
+    Ok(String::from_utf8(w.into_inner().map_err(|e| anyhow!("{e}"))?)?)
 }
 
 fn refine_table(r: &Refinement) -> String {

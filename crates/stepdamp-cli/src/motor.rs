@@ -1,10 +1,9 @@
 //! `stepdamp motor show|check` and `stepdamp resonance`.
 
 use crate::Global;
-use crate::common::load_motor;
-use crate::sweep::resonance_markers;
+use crate::common::{Format, load_motor, print_json};
 use anyhow::Result;
-use stepdamp_sim::{PRESETS, Profile};
+use stepdamp_profile::{MotorFigures, MotorShow, PRESETS, Profile};
 
 /// `stepdamp motor …`.
 #[derive(clap::Subcommand, Debug)]
@@ -13,6 +12,9 @@ pub enum MotorCommand {
     Show {
         /// Preset name or TOML file.
         motor: String,
+        /// text (the TOML and its figures as comments) or json.
+        #[arg(long, value_enum, default_value_t)]
+        format: Format,
     },
     /// Check a profile; print the precise reason when it is invalid.
     Check {
@@ -29,43 +31,23 @@ pub struct ResonanceArgs {
     /// Motor: a preset name or a profile TOML file.
     #[arg(long, default_value = "patent-motor")]
     pub motor: String,
-}
-
-/// Derived figures of a profile, one per line.
-pub fn derived(p: &Profile) -> String {
-    let m = &p.motor;
-    let d = &p.drive;
-    let k = p.holding_stiffness_nm_per_rad();
-    let wn = p.natural_frequency_rad_s();
-    let mut s = String::new();
-    s += &format!(
-        "holding torque √2·Km·I      {:.4} N·m\n",
-        std::f64::consts::SQRT_2 * m.km_nm_per_a * d.holding_current_a
-    );
-    s += &format!("holding stiffness Nr·Km·I   {k:.3} N·m/rad\n");
-    s += &format!("natural frequency ω_n       {wn:.1} rad/s ({:.1} Hz)\n", wn / std::f64::consts::TAU);
-    s += &format!("damping ratio D/(2Jω_n)     {:.4}\n", p.damping_ratio());
-    s += &format!("electrical time constant    {:.2} ms\n", 1e3 * m.inductance_h / m.resistance_ohm);
-    s += &format!("full step                   {:.3}°\n", 90.0 / f64::from(m.pole_pairs));
-    for mk in resonance_markers(p) {
-        s += &format!(
-            "resonance {:<5}             {:.3} rad/s ({:.2} rev/s)\n",
-            mk.label,
-            mk.x,
-            mk.x / std::f64::consts::TAU
-        );
-    }
-    s
+    /// text or json.
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
 }
 
 /// Runs `stepdamp motor …`.
 pub fn run(c: MotorCommand, _g: &Global) -> Result<()> {
     match c {
-        MotorCommand::Show { motor } => {
+        MotorCommand::Show { motor, format } => {
             let p = load_motor(&motor)?;
+            let figures = MotorFigures::of(&p);
+            if format == Format::Json {
+                return print_json(&MotorShow { profile: p, figures });
+            }
             out!("{}", p.to_toml_string());
             outln!("\n# derived");
-            for line in derived(&p).lines() {
+            for line in figures.to_string().lines() {
                 outln!("# {line}");
             }
         }
@@ -81,7 +63,12 @@ pub fn run(c: MotorCommand, _g: &Global) -> Result<()> {
                     p.motor.km_nm_per_a,
                     p.drive.holding_current_a,
                     p.motor.inertia_kg_m2,
-                    resonance_markers(&p).iter().map(|m| format!("{:.2}", m.x)).collect::<Vec<_>>().join(", ")
+                    MotorFigures::of(&p)
+                        .resonances
+                        .iter()
+                        .map(|r| format!("{:.2}", r.speed_rad_s))
+                        .collect::<Vec<_>>()
+                        .join(", ")
                 );
             }
         }
@@ -91,8 +78,11 @@ pub fn run(c: MotorCommand, _g: &Global) -> Result<()> {
 
 /// Runs `stepdamp resonance`.
 pub fn resonance(a: ResonanceArgs, _g: &Global) -> Result<()> {
-    let p = load_motor(&a.motor)?;
-    outln!("{}", p.name);
-    out!("{}", derived(&p));
+    let figures = MotorFigures::of(&load_motor(&a.motor)?);
+    if a.format == Format::Json {
+        return print_json(&figures);
+    }
+    outln!("{}", figures.name);
+    out!("{figures}");
     Ok(())
 }

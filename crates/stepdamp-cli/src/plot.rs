@@ -44,20 +44,6 @@ pub fn sweep_plot(rows: &[SweepRow], markers: &[Marker], title: &str, svg: &Path
     Ok(())
 }
 
-/// The modes and the compensations of `rows`, each in order of first appearance.
-pub fn modes_and_compensations(rows: &[SweepRow]) -> (Vec<&'static str>, Vec<&'static str>) {
-    let (mut modes, mut comps) = (Vec::new(), Vec::new());
-    for r in rows {
-        if !modes.contains(&r.mode) {
-            modes.push(r.mode);
-        }
-        if !comps.contains(&r.compensation) {
-            comps.push(r.compensation);
-        }
-    }
-    (modes, comps)
-}
-
 fn draw_sweep<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     rows: &[SweepRow],
@@ -70,7 +56,7 @@ where
     let err = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow!("plot: {e}");
     root.fill(&WHITE).map_err(err)?;
     let root = root.titled(title, ("sans-serif", 22)).map_err(err)?;
-    let (modes, comps) = crate::plot::modes_and_compensations(rows);
+    let (modes, comps) = stepdamp_sim::summary::modes_and_compensations(rows);
     let panels = root.split_evenly((modes.len().max(1), 1));
     let (x0, x1) = rows
         .iter()

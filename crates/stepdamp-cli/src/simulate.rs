@@ -4,9 +4,9 @@ use crate::Global;
 use crate::common::{AtomicFiles, load_motor, parent_dir, parse_compensations, parse_modes};
 use anyhow::{Context, Result, anyhow, bail};
 use std::path::PathBuf;
-use stepdamp_sim::runlog::LogRow;
+use stepdamp_sim::runlog::{FromRecord, LogRow};
 use stepdamp_sim::{
-    ClosedLoop, ESTIMATED_IS_OPEN_LOOP_ONLY, MAX_SPEED_RAD_S, RunSpec, SimError, SimOptions, check_mode_compensation,
+    ClosedLoop, ESTIMATED_IS_OPEN_LOOP_ONLY, RunSpec, SimError, SimOptions, check_mode_compensation,
     check_same_hardware, run as run_spec,
 };
 
@@ -34,10 +34,10 @@ pub struct SimulateArgs {
     #[arg(long, default_value_t = 1.5, allow_negative_numbers = true)]
     pub duration: f64,
     /// Standstill time with the holding current on before the ramp, s.
-    #[arg(long, default_value_t = 0.05)]
+    #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
     pub dwell: f64,
     /// Ramp time from rest to the speed in s.
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]
     pub ramp: f64,
     /// Constant load torque in N·m opposing the direction of travel.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
@@ -46,7 +46,7 @@ pub struct SimulateArgs {
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub current_noise: f64,
     /// Seed of the noise generator.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     pub seed: u64,
     /// Write the run log (one row per control period, design.md §6) to this CSV file.
     #[arg(long)]
@@ -77,9 +77,6 @@ pub fn run(a: SimulateArgs, _g: &Global) -> Result<()> {
     })?;
     if *comp == stepdamp_sim::Compensation::Table {
         bail!("--compensation table replays a table file: use `stepdamp sweep --compensation table --table FILE`");
-    }
-    if !a.speed.is_finite() || a.speed == 0.0 || a.speed.abs() > MAX_SPEED_RAD_S {
-        bail!("--speed {}: must be a non-zero speed in rad/s, |speed| ≤ {MAX_SPEED_RAD_S}", a.speed);
     }
     if !(a.duration.is_finite() && a.duration > 0.0 && a.duration <= 1000.0) {
         bail!("--duration {}: must be in (0, 1000] s", a.duration);

@@ -4,6 +4,7 @@
 use crate::correction::CorrectionTable;
 use crate::detent::{Harmonic, HarmonicSeries};
 use crate::encoder::Encoder;
+use crate::limits::{self, Limit};
 use crate::modulator::Topology;
 use crate::observer::{LoadAngleObserver, ObserverSettings};
 use crate::pi::Pi;
@@ -73,8 +74,10 @@ impl ServoGains {
     }
 }
 
-/// Control mode.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+/// Control mode. Named `open-loop` and `servo` in tables, profiles and on the command line
+/// ([`Mode::name`], `FromStr`, serde with the `serde` feature).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize), serde(rename_all = "kebab-case"))]
 pub enum Mode {
     /// Microstepping without an encoder: Park at `θ_cmd`, `i_d = I_hold` (eqs. 7–8).
     #[default]
@@ -100,8 +103,10 @@ pub struct Params<'a> {
     pub compensation: Compensation,
 }
 
-/// Detent compensation.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+/// Detent compensation. Named `off`, `patent` and `estimated` ([`Compensation::name`],
+/// `FromStr`, serde with the `serde` feature).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize), serde(rename_all = "kebab-case"))]
 pub enum Compensation {
     /// None (and no friction feed-forward in servo mode).
     #[default]
@@ -122,6 +127,65 @@ pub enum Compensation {
     /// configuration with [`Config::with_table`].
     Table,
 }
+
+/// A name that is none of a choice's names.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct UnknownName {
+    /// What was being named, e.g. `"mode"`.
+    pub what: &'static str,
+    /// The names allowed, comma-separated.
+    pub expected: &'static str,
+}
+
+impl core::fmt::Display for UnknownName {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "unknown {}: expected {}", self.what, self.expected)
+    }
+}
+
+impl core::error::Error for UnknownName {}
+
+/// Names, `FromStr` and `Display` of a choice, from one table.
+macro_rules! named_choice {
+    ($ty:ident, $what:literal, $expected:literal, [$($v:ident => $n:literal),+ $(,)?]) => {
+        impl $ty {
+            /// Every choice, in table order.
+            pub const ALL: &'static [$ty] = &[$($ty::$v),+];
+
+            /// The name in tables, profiles and on the command line.
+            pub const fn name(self) -> &'static str {
+                match self {
+                    $($ty::$v => $n),+
+                }
+            }
+        }
+
+        impl core::str::FromStr for $ty {
+            type Err = UnknownName;
+            fn from_str(s: &str) -> Result<Self, UnknownName> {
+                match s {
+                    $($n => Ok($ty::$v),)+
+                    _ => Err(UnknownName { what: $what, expected: $expected }),
+                }
+            }
+        }
+
+        impl core::fmt::Display for $ty {
+            fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+                f.write_str(self.name())
+            }
+        }
+    };
+}
+
+named_choice!(Mode, "mode", "open-loop, servo", [OpenLoop => "open-loop", Servo => "servo"]);
+named_choice!(Compensation, "compensation", "off, patent, estimated, angle, table", [
+    Off => "off",
+    Patent => "patent",
+    Estimated => "estimated",
+    Angle => "angle",
+    Table => "table",
+]);
 
 /// Detent harmonics of the `patent-motor` (design.md §6–§7).
 pub const PATENT_MOTOR_DETENT: [Harmonic; 3] = [
@@ -182,7 +246,7 @@ pub enum ConfigError {
         /// The value given.
         value: f32,
         /// What it must be.
-        reason: &'static str,
+        reason: Reason,
     },
     /// A harmonic order outside `1..=MAX_HARMONIC_ORDER`.
     HarmonicOrder {
@@ -211,6 +275,33 @@ impl core::fmt::Display for ConfigError {
 }
 
 impl core::error::Error for ConfigError {}
+
+/// What a rejected value must be.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Reason {
+    /// Within the plausible range of the parameter ([`crate::limits`]).
+    OutOfRange(&'static Limit),
+    /// A relation to another parameter, or a derived value that overflowed.
+    Other(&'static str),
+}
+
+impl core::fmt::Display for Reason {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Reason::OutOfRange(l) => write!(f, "must be in {l}"),
+            Reason::Other(s) => f.write_str(s),
+        }
+    }
+}
+
+/// `v` if it is within `limit`, else the error naming `limit.key`.
+pub(crate) fn within(limit: &'static Limit, v: f32) -> Result<f32, ConfigError> {
+    if limit.contains_f32(v) {
+        Ok(v)
+    } else {
+        Err(ConfigError::Invalid { field: limit.key, value: v, reason: Reason::OutOfRange(limit) })
+    }
+}
 
 /// Validated, precomputed configuration read by [`crate::step`]. Build once, never mutate.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -271,6 +362,14 @@ pub struct Config {
 /// describe the rotation unambiguously, including the one-period computation delay.
 pub const MAX_ELECTRICAL_TURN_PER_PERIOD: f64 = 0.25;
 
+/// Largest commanded speed magnitude in rad/s (mechanical) for `pole_pairs` and control
+/// period `period_s`: [`MAX_ELECTRICAL_TURN_PER_PERIOD`] of an electrical turn per period,
+/// `(π/2)/(Nr·Ts)`. [`Config::max_speed_rad_s`] is this; a simulator that refuses faster
+/// commands uses it too. Pass the period the controller uses, `1/pwm_hz` in `f32`.
+pub fn max_speed_rad_s(pole_pairs: u16, period_s: f32) -> f32 {
+    (core::f64::consts::TAU * MAX_ELECTRICAL_TURN_PER_PERIOD / (f64::from(pole_pairs) * f64::from(period_s))) as f32
+}
+
 fn finite(field: &'static str, input: f32, derived: f32) -> Result<(), ConfigError> {
     if derived.is_finite() {
         Ok(())
@@ -278,7 +377,7 @@ fn finite(field: &'static str, input: f32, derived: f32) -> Result<(), ConfigErr
         Err(ConfigError::Invalid {
             field,
             value: input,
-            reason: "too large or too small: a derived value is not finite",
+            reason: Reason::Other("too large or too small: a derived value is not finite"),
         })
     }
 }
@@ -286,19 +385,11 @@ fn finite(field: &'static str, input: f32, derived: f32) -> Result<(), ConfigErr
 /// Corner of the load-angle observer's back-EMF filter, Hz.
 const OBSERVER_BANDWIDTH_HZ: f32 = 500.0;
 
-fn positive(field: &'static str, v: f32) -> Result<f32, ConfigError> {
-    if v.is_finite() && v > 0.0 {
-        Ok(v)
-    } else {
-        Err(ConfigError::Invalid { field, value: v, reason: "must be finite and > 0" })
-    }
-}
-
 fn non_negative(field: &'static str, v: f32) -> Result<f32, ConfigError> {
     if v.is_finite() && v >= 0.0 {
         Ok(v)
     } else {
-        Err(ConfigError::Invalid { field, value: v, reason: "must be finite and ≥ 0" })
+        Err(ConfigError::Invalid { field, value: v, reason: Reason::Other("must be finite and ≥ 0") })
     }
 }
 
@@ -310,7 +401,7 @@ impl Config {
             return Err(ConfigError::Invalid {
                 field: "compensation",
                 value: 0.0,
-                reason: "table compensation needs a correction table: build with Config::with_table",
+                reason: Reason::Other("table compensation needs a correction table: build with Config::with_table"),
             });
         }
         Self::build(p)
@@ -331,63 +422,51 @@ impl Config {
     fn build(p: &Params<'_>) -> Result<Config, ConfigError> {
         let m = &p.motor;
         let d = &p.drive;
-        let km = positive("motor.km_nm_per_a", m.km_nm_per_a)?;
-        if m.pole_pairs == 0 || m.pole_pairs > 1024 {
-            return Err(ConfigError::Invalid {
-                field: "motor.pole_pairs",
-                value: f32::from(m.pole_pairs),
-                reason: "must be in 1..=1024",
-            });
-        }
-        let r = positive("motor.resistance_ohm", m.resistance_ohm)?;
-        let l = positive("motor.inductance_h", m.inductance_h)?;
-        let fs = non_negative("motor.coulomb_friction_nm", m.coulomb_friction_nm)?;
-        let vdc = positive("drive.bus_voltage_v", d.bus_voltage_v)?;
-        let pwm = positive("drive.pwm_hz", d.pwm_hz)?;
-        let limit = positive("drive.current_limit_a", d.current_limit_a)?;
-        let hold = non_negative("drive.holding_current_a", d.holding_current_a)?;
+        let km = within(&limits::KM_NM_PER_A, m.km_nm_per_a)?;
+        within(&limits::POLE_PAIRS, f32::from(m.pole_pairs))?;
+        let r = within(&limits::RESISTANCE_OHM, m.resistance_ohm)?;
+        let l = within(&limits::INDUCTANCE_H, m.inductance_h)?;
+        let fs = within(&limits::COULOMB_FRICTION_NM, m.coulomb_friction_nm)?;
+        let vdc = within(&limits::BUS_VOLTAGE_V, d.bus_voltage_v)?;
+        let pwm = within(&limits::PWM_HZ, d.pwm_hz)?;
+        let limit = within(&limits::CURRENT_LIMIT_A, d.current_limit_a)?;
+        let hold = within(&limits::HOLDING_CURRENT_A, d.holding_current_a)?;
         if hold > limit {
             return Err(ConfigError::Invalid {
                 field: "drive.holding_current_a",
                 value: hold,
-                reason: "must not exceed drive.current_limit_a",
+                reason: Reason::Other("must not exceed drive.current_limit_a"),
             });
         }
-        let bw = positive("drive.current_loop_bandwidth_hz", d.current_loop_bandwidth_hz)?;
-        if bw > pwm / 4.0 {
+        let bw = within(&limits::CURRENT_LOOP_BANDWIDTH_HZ, d.current_loop_bandwidth_hz)?;
+        if f64::from(bw) > f64::from(pwm) * limits::CURRENT_LOOP_BANDWIDTH_PER_PWM {
             return Err(ConfigError::Invalid {
                 field: "drive.current_loop_bandwidth_hz",
                 value: bw,
-                reason: "must be below a quarter of drive.pwm_hz",
+                reason: Reason::Other("must be below a quarter of drive.pwm_hz"),
             });
         }
         let cpr = p.encoder_counts_per_rev;
-        if cpr == 0 || cpr > 1 << 20 {
+        if !limits::COUNTS_PER_REV.contains(f64::from(cpr)) {
             return Err(ConfigError::Invalid {
-                field: "encoder.counts_per_rev",
+                field: limits::COUNTS_PER_REV.key,
                 value: cpr as f32,
-                reason: "must be in 1..=1048576",
+                reason: Reason::OutOfRange(&limits::COUNTS_PER_REV),
             });
         }
         let s = &p.servo;
         let kpv = non_negative("servo.velocity_nm_s_per_rad", s.velocity_nm_s_per_rad)?;
         let kpp = non_negative("servo.position_nm_per_rad", s.position_nm_per_rad)?;
         let kip = non_negative("servo.position_integral_nm_per_rad_s", s.position_integral_nm_per_rad_s)?;
-        let vf = positive("servo.velocity_filter_hz", s.velocity_filter_hz)?;
+        let vf = within(&limits::VELOCITY_FILTER_HZ, s.velocity_filter_hz)?;
         let ts = 1.0 / pwm;
         let series = HarmonicSeries::new(m.detent, 1.0 / km)?;
-        if d.computation_delay_periods > 1 {
-            return Err(ConfigError::Invalid {
-                field: "drive.computation_delay_periods",
-                value: f32::from(d.computation_delay_periods),
-                reason: "must be 0 or 1",
-            });
-        }
+        within(&limits::COMPUTATION_DELAY_PERIODS, f32::from(d.computation_delay_periods))?;
         if p.mode == Mode::Servo && matches!(p.compensation, Compensation::Angle | Compensation::Table) {
             return Err(ConfigError::Invalid {
                 field: "compensation",
                 value: 0.0,
-                reason: "angle and table compensation are open-loop laws (use patent in servo mode)",
+                reason: Reason::Other("angle and table compensation are open-loop laws (use patent in servo mode)"),
             });
         }
         let on = p.compensation != Compensation::Off;
@@ -444,8 +523,7 @@ impl Config {
             friction_a: if on { fs / km } else { 0.0 },
             current_sample_limit_a: 100.0 * limit,
             inv_bus_voltage: 1.0 / vdc,
-            max_speed_rad_s: (core::f64::consts::TAU * MAX_ELECTRICAL_TURN_PER_PERIOD
-                / (f64::from(m.pole_pairs) * f64::from(ts))) as f32,
+            max_speed_rad_s: max_speed_rad_s(m.pole_pairs, ts),
             compensation_kind: p.compensation,
             table: CorrectionTable::default(),
         };
@@ -478,7 +556,7 @@ impl Config {
             return Err(ConfigError::Invalid {
                 field: "detent.amplitude_nm",
                 value: largest,
-                reason: "too large for motor.km_nm_per_a: the compensation current is not finite",
+                reason: Reason::Other("too large for motor.km_nm_per_a: the compensation current is not finite"),
             });
         }
         Ok(())

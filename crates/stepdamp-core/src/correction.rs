@@ -23,7 +23,7 @@
 //! [`Compensation::Angle`]: crate::Compensation::Angle
 //! [`Compensation::Table`]: crate::Compensation::Table
 
-use crate::config::ConfigError;
+use crate::config::{ConfigError, Reason};
 use crate::park::{Ab, Dq};
 
 /// Ticks of a [`CorrectionTable`] per electrical period (Prusa's `MOTOR_PERIOD`, the
@@ -66,7 +66,7 @@ pub fn check_table(table: &CorrectionTable, holding_current_a: f32, current_limi
         return Err(ConfigError::Invalid {
             field: "table.full_scale",
             value: f32::from(table.full_scale),
-            reason: "must be > 0",
+            reason: Reason::Other("must be > 0"),
         });
     }
     let peak = table.max_abs() as f32 / f32::from(table.full_scale) * holding_current_a;
@@ -74,7 +74,7 @@ pub fn check_table(table: &CorrectionTable, holding_current_a: f32, current_limi
         return Err(ConfigError::Invalid {
             field: "table",
             value: peak,
-            reason: "the largest reference current (A) exceeds drive.current_limit_a",
+            reason: Reason::Other("the largest reference current (A) exceeds drive.current_limit_a"),
         });
     }
     Ok(())

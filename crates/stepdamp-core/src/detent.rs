@@ -47,20 +47,8 @@ impl HarmonicSeries {
             if k == 0 || k > MAX_HARMONIC_ORDER {
                 return Err(ConfigError::HarmonicOrder { order: h.order });
             }
-            if !(h.amplitude_nm.is_finite() && h.amplitude_nm >= 0.0) {
-                return Err(ConfigError::Invalid {
-                    field: "detent.amplitude_nm",
-                    value: h.amplitude_nm,
-                    reason: "must be finite and ≥ 0",
-                });
-            }
-            if !h.phase_rad.is_finite() {
-                return Err(ConfigError::Invalid {
-                    field: "detent.phase_rad",
-                    value: h.phase_rad,
-                    reason: "must be finite",
-                });
-            }
+            crate::config::within(&crate::limits::DETENT_AMPLITUDE_NM, h.amplitude_nm)?;
+            crate::config::within(&crate::limits::DETENT_PHASE_RAD, h.phase_rad)?;
             if harmonics.iter().filter(|o| o.order == h.order).count() > 1 {
                 return Err(ConfigError::DuplicateHarmonic { order: h.order });
             }

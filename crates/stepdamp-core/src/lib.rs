@@ -58,6 +58,7 @@ pub mod correction;
 pub mod detent;
 pub mod drive;
 pub mod encoder;
+pub mod limits;
 pub mod lowpass;
 pub mod modulator;
 pub mod observer;
@@ -68,7 +69,7 @@ pub mod trig;
 pub use angle::{MicrostepAccumulator, Position};
 pub use config::{
     Compensation, Config, ConfigError, DriveSettings, MAX_ELECTRICAL_TURN_PER_PERIOD, Mode, MotorModel,
-    PATENT_MOTOR_DETENT, Params, ServoGains,
+    PATENT_MOTOR_DETENT, Params, Reason, ServoGains, UnknownName, max_speed_rad_s,
 };
 pub use correction::{CorrectionTable, TABLE_TICKS};
 pub use detent::{Harmonic, HarmonicSeries, MAX_HARMONIC_ORDER};

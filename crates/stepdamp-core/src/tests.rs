@@ -455,3 +455,16 @@ fn current_loop_recovers_from_bus_saturation_without_windup_through_step() {
         assert!((last.d - 0.9 * 1.9).abs() < 0.02 && last.q.abs() < 1e-3, "{topology:?}: {last:?}");
     }
 }
+
+#[test]
+fn mode_and_compensation_names_parse_back() {
+    use core::str::FromStr;
+    for &m in Mode::ALL {
+        assert_eq!(Mode::from_str(m.name()), Ok(m));
+    }
+    for &c in Compensation::ALL {
+        assert_eq!(Compensation::from_str(c.name()), Ok(c));
+    }
+    let e = Mode::from_str("closed").unwrap_err();
+    assert_eq!((e.what, e.expected), ("mode", "open-loop, servo"));
+}

@@ -106,8 +106,7 @@ mod tests {
         ] {
             assert!(h.contains(field), "{field} missing in\n{h}");
         }
-        let mut none = p.clone();
-        none.motor.detent.clear();
+        let none = p.edited("no detent", |d| d.motor.detent.clear()).unwrap();
         assert!(header(&none, "x", "m").contains(".detent = NULL"));
     }
 }

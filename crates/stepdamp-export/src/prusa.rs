@@ -344,14 +344,17 @@ pub fn import_profile(base: &Profile, c: &PrusaCorrection, current_a: f64) -> Re
         avg.pha[n] = y.atan2(x) as f32;
     }
     let (terms, _) = to_detent(&avg, base.motor.km_nm_per_a, current_a);
-    let mut p = base.clone();
-    p.name = format!("{} (Prusa correction)", base.name);
-    p.motor.detent = terms
-        .into_iter()
-        .map(|(order, amplitude_nm, phase_rad)| DetentTerm { order, amplitude_nm, phase_rad })
-        .collect();
-    p.drive.holding_current_a = current_a.min(p.drive.current_limit_a);
-    p.validate(&p.name).map_err(|e| ExportError::Invalid(e.to_string()))?;
+    let name = format!("{} (Prusa correction)", base.name);
+    let p = base
+        .edited(&name, |d| {
+            d.name = name.clone();
+            d.motor.detent = terms
+                .into_iter()
+                .map(|(order, amplitude_nm, phase_rad)| DetentTerm { order, amplitude_nm, phase_rad })
+                .collect();
+            d.drive.holding_current_a = current_a.min(d.drive.current_limit_a);
+        })
+        .map_err(|e| ExportError::Invalid(e.to_string()))?;
     Ok((p, spread))
 }
 
@@ -499,7 +502,8 @@ mod tests {
         assert_eq!(offset, 0.0);
         assert_eq!(terms.len(), 3);
         for (k, a, ph) in terms {
-            let h = Profile::preset("patent-motor").unwrap().motor.detent.into_iter().find(|h| h.order == k).unwrap();
+            let h =
+                Profile::preset("patent-motor").unwrap().motor.detent.iter().copied().find(|h| h.order == k).unwrap();
             assert!((a - h.amplitude_nm).abs() < 1e-7 && (ph - h.phase_rad).abs() < 1e-6, "{k}");
         }
     }

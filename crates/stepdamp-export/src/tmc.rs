@@ -288,10 +288,9 @@ pub fn table(regs: &TmcRegisters) -> CorrectionTable {
 /// `A·cos φ` (as amplitude `|A cos φ|`, phase 0 or π); every other order dropped. A
 /// controller configured from it with the `angle` law predicts what the table does on the
 /// real motor (the uncovered orders still ripple), without the table's integer rounding.
-pub fn covered_profile(p: &Profile) -> Profile {
-    let mut out = p.clone();
-    out.name = format!("{} (part a Trinamic table carries)", p.name);
-    out.motor.detent = p
+pub fn covered_profile(p: &Profile) -> Result<Profile, ExportError> {
+    let name = format!("{} (part a Trinamic table carries)", p.name);
+    let detent = p
         .motor
         .detent
         .iter()
@@ -305,7 +304,11 @@ pub fn covered_profile(p: &Profile) -> Profile {
             }
         })
         .collect();
-    out
+    p.edited(&name, |d| {
+        d.name = name.clone();
+        d.motor.detent = detent;
+    })
+    .map_err(|e| ExportError::Invalid(e.to_string()))
 }
 
 impl std::fmt::Display for TmcExport {

@@ -48,7 +48,7 @@ fn tmc_table_reduces_the_first_resonance_as_its_report_predicts() {
     assert!(o4.expressible && o4.reduction_db() > 20.0, "{o4:?}");
     // The report's prediction: the angle law carrying exactly the covered part of the model
     // (order 4's sine part), on the real motor whose orders 2 and 1 still ripple.
-    let covered = tmc::covered_profile(&p);
+    let covered = tmc::covered_profile(&p).unwrap();
     let comps = vec![
         ("tmc table".to_string(), predict::config(&p, Compensation::Table, Some(&tmc::table(&e.registers))).unwrap()),
         ("covered part".to_string(), predict::config(&covered, Compensation::Angle, None).unwrap()),

@@ -119,10 +119,10 @@ use crate::kinematics::{self, Kinematics};
 use crate::log::RunLog;
 use crate::lsq::{self, Design, LsqError};
 use std::f64::consts::{PI, TAU};
-use stepdamp_sim::Profile;
+use stepdamp_profile::Profile;
 
-/// Default harmonic orders of the fit.
-pub const DEFAULT_ORDERS: [u16; 3] = [1, 2, 4];
+/// Default harmonic orders of the fit: [`stepdamp_profile::TYPICAL_DETENT_ORDERS`].
+pub const DEFAULT_ORDERS: [u16; 3] = stepdamp_profile::TYPICAL_DETENT_ORDERS;
 
 /// Two speeds in one direction separate `D` from `Fs` when the faster is at least this many
 /// times the slower (see the module documentation, *Friction terms*).

@@ -11,10 +11,14 @@
 //! | [`lsq`] | least squares (QR + SVD) with a block-robust covariance |
 //! | [`fit`] | the torque balance fit: harmonics, `Fs`, `D`, intervals, warnings |
 //! | [`model`] | the identified model and the profile made from it |
-//! | [`plan`] | which runs to record and why; simulate them, write their logs |
-//! | [`refine`] | the patent's criterion: feed-forward on, remove the remaining ripple |
+//! | [`plan`] | which runs to record and why |
+//! | `simulate` | simulate the plan's runs, write their logs (feature `simulate`) |
+//! | `refine` | the patent's criterion: feed-forward on, remove the remaining ripple (feature `simulate`) |
 //! | [`static_curve`] | torque-versus-angle table → FFT → harmonics |
 //! | [`spectrum`] | amplitude per harmonic order of a torque against angle (reports) |
+//!
+//! Reading logs and fitting need only `stepdamp-profile`; what simulates (the `simulate`
+//! and `refine` modules) needs the default feature `simulate` (the simulator and rayon).
 //!
 //! Sign conventions are the profile's: the detent torque on the rotor is
 //! `−Σ A_k sin(k·Nr·θ + φ_k)`, friction `−Fs·sgn(ω) − D·ω`; phases are in `(−π, π]`.
@@ -22,6 +26,7 @@
 //! ```
 //! use stepdamp_identify::{fit::{fit, FitOptions}, model::Model, plan::{plan, simulate_plan, PlanOptions}};
 //! use stepdamp_sim::{Compensation, Profile};
+//! # #[cfg(feature = "simulate")] {
 //!
 //! let motor = Profile::preset("patent-motor").unwrap();
 //! // The runs to record (short ones here), simulated with current noise.
@@ -33,6 +38,7 @@
 //! let identified = Model::from_fit(&f).apply_to(&motor, Some("identified"), "identified.toml")?;
 //! let a4 = identified.motor.detent.iter().find(|h| h.order == 4).unwrap().amplitude_nm;
 //! assert!((a4 - 0.02).abs() < 0.001);
+//! # }
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
@@ -42,9 +48,12 @@ pub mod log;
 pub mod lsq;
 pub mod model;
 pub mod plan;
+#[cfg(feature = "simulate")]
 pub mod refine;
+#[cfg(feature = "simulate")]
+pub mod simulate;
 pub mod spectrum;
 pub mod static_curve;
 
-#[cfg(test)]
+#[cfg(all(test, feature = "simulate"))]
 mod tests;

@@ -31,7 +31,7 @@
 
 use std::io::Read;
 use std::path::Path;
-use stepdamp_sim::runlog::LogRow;
+use stepdamp_profile::LogRow;
 
 /// The columns a run log must or may carry (design.md §6).
 pub const KNOWN_COLUMNS: [&str; 9] =

@@ -2,8 +2,7 @@
 //! motor profile made from it.
 
 use crate::fit::Fit;
-use stepdamp_sim::profile::DetentTerm;
-use stepdamp_sim::{Profile, ProfileError};
+use stepdamp_profile::{DetentTerm, Profile, ProfileError};
 
 /// What identification produces: the detent series and the friction, in the profile's
 /// conventions (torque on the rotor `−Σ A_k sin(k·Nr·θ + φ_k)`, friction
@@ -57,18 +56,24 @@ impl Model {
     /// this model, validated. Everything else (drive, encoder, servo, Km) is kept. `name` replaces the profile's name when
     /// given.
     pub fn apply_to(&self, base: &Profile, name: Option<&str>, origin: &str) -> Result<Profile, ProfileError> {
-        let mut p = base.clone();
-        p.motor.detent = self.detent.clone();
-        p.motor.coulomb_friction_nm = self.coulomb_friction_nm;
-        p.motor.viscous_nm_s_per_rad = self.viscous_nm_s_per_rad;
-        if let Some(j) = self.inertia_kg_m2 {
-            p.motor.inertia_kg_m2 = j;
-        }
-        if let Some(n) = name {
-            p.name = n.to_string();
-        }
-        p.validate(origin)?;
-        Ok(p)
+        base.edited(origin, |p| {
+            p.motor.detent = self.detent.clone();
+            p.motor.coulomb_friction_nm = self.coulomb_friction_nm;
+            p.motor.viscous_nm_s_per_rad = self.viscous_nm_s_per_rad;
+            if let Some(j) = self.inertia_kg_m2 {
+                p.motor.inertia_kg_m2 = j;
+            }
+            if let Some(n) = name {
+                p.name = n.to_string();
+            }
+        })
+    }
+
+    /// The torque the detent needs from the motor at electrical angle `theta_e`:
+    /// `Σ A_k sin(k θe + φ_k)`, N·m (the feed-forward of servo mode). Identification's only
+    /// evaluation of the series (the controller's, in `f32`, is `stepdamp_core::HarmonicSeries`).
+    pub fn series_nm(&self, theta_e: f64) -> f64 {
+        self.detent.iter().map(|h| h.amplitude_nm * (f64::from(h.order) * theta_e + h.phase_rad).sin()).sum()
     }
 
     /// RMS over an electrical period of `Σ A_k sin(kθe + φ_k)`: `√(Σ A_k²/2)`, N·m.
@@ -97,6 +102,11 @@ impl Model {
             .sum();
         (ss / 2.0).sqrt()
     }
+}
+
+/// [`Model::series_nm`] as a function.
+pub fn series_nm(m: &Model, theta_e: f64) -> f64 {
+    m.series_nm(theta_e)
 }
 
 #[cfg(test)]

@@ -111,11 +111,7 @@ impl Refinement {
     }
 }
 
-/// The torque a model's detent needs from the motor at electrical angle `theta_e`:
-/// `Σ A_k sin(k θe + φ_k)`, N·m (the feed-forward of servo mode).
-pub fn series_nm(m: &Model, theta_e: f64) -> f64 {
-    m.detent.iter().map(|h| h.amplitude_nm * (f64::from(h.order) * theta_e + h.phase_rad).sin()).sum()
-}
+pub use crate::model::series_nm;
 
 /// Periodic ripple (orders 1–[`PERIODIC_ORDERS`], RMS N·m) of a fit's needed torque beyond
 /// the feed-forward `ff` (if any) that ran while its logs were recorded.

@@ -22,9 +22,7 @@ fn patent() -> Profile {
 /// What a user starts from: the preset's profile with its `J` (the true one may differ) and
 /// no detent (the plan then assumes typical amplitudes).
 fn user_base() -> Profile {
-    let mut b = patent();
-    b.motor.detent.clear();
-    b
+    patent().edited("user base", |b| b.motor.detent.clear()).unwrap()
 }
 
 /// The identified `J` over the true one, and whether the fit warned that it disagrees with
@@ -122,7 +120,7 @@ fn patent_motor_from_run_plan_logs_is_within_5_percent_and_0_05_rad_and_fs_withi
 /// phase, and the inertia scaled by 0.5–3.
 fn random_motor(seed: u64) -> Profile {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let mut m = patent();
+    let mut m = patent().to_data();
     m.name = format!("random-{seed}");
     m.motor.inertia_kg_m2 *= rng.random_range(0.5..3.0);
     m.motor.detent = [4u16, 2, 1]
@@ -133,7 +131,7 @@ fn random_motor(seed: u64) -> Profile {
             phase_rad: rng.random_range(-std::f64::consts::PI..std::f64::consts::PI),
         })
         .collect();
-    m
+    m.validate("random motor").unwrap()
 }
 
 #[test]
@@ -193,8 +191,9 @@ fn open_loop_reductions_db(motor: &Profile, controller: &Profile) -> Vec<(u16, f
             options: SimOptions::default(),
         };
         let rows = sweep(motor, controller, &spec, &|| {}).unwrap();
-        let peak =
-            |comp: &str| rows.iter().filter(|r| r.compensation == comp).map(|r| r.vel_err_pp_rad_s).fold(0.0, f64::max);
+        let peak = |comp: &str| {
+            rows.iter().filter(|r| r.compensation.name() == comp).map(|r| r.vel_err_pp_rad_s).fold(0.0, f64::max)
+        };
         out.push((k, 20.0 * (peak("off") / peak("patent")).log10()));
     }
     out

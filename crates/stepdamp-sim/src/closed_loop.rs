@@ -20,23 +20,14 @@ use stepdamp_core::{
 
 pub use stepdamp_core::Compensation;
 
-/// Name of a compensation in tables and on the command line.
+/// Name of a compensation in tables and on the command line ([`Compensation::name`]).
 pub fn compensation_name(c: Compensation) -> &'static str {
-    match c {
-        Compensation::Off => "off",
-        Compensation::Patent => "patent",
-        Compensation::Estimated => "estimated",
-        Compensation::Angle => "angle",
-        Compensation::Table => "table",
-    }
+    c.name()
 }
 
-/// Name of a control mode in tables and on the command line.
+/// Name of a control mode in tables and on the command line ([`Mode::name`]).
 pub fn mode_name(m: Mode) -> &'static str {
-    match m {
-        Mode::OpenLoop => "open-loop",
-        Mode::Servo => "servo",
-    }
+    m.name()
 }
 
 /// Simulation options (the physics of the drive that a profile does not describe).
@@ -278,11 +269,10 @@ impl ClosedLoop {
         Self::with_config(motor, cfg, opts)
     }
 
-    /// A loop around an already built controller configuration. The motor's profile is
-    /// validated ([`Profile::validate`]), and the configuration must be for its pole pairs,
-    /// PWM frequency, bus voltage and power stage.
+    /// A loop around an already built controller configuration. The configuration must be
+    /// for the motor's pole pairs, PWM frequency, bus voltage and power stage (the profile
+    /// is valid by its type).
     pub fn with_config(motor: &Profile, cfg: Config, opts: &SimOptions) -> Result<Self, SimError> {
-        motor.validate(&motor.name)?;
         let mismatch = |key: &'static str, m: String, c: String| SimError::HardwareMismatch {
             motor: motor.name.clone(),
             controller: "the controller configuration".to_string(),
@@ -416,7 +406,8 @@ impl ClosedLoop {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::runlog::LogRow;
+    use crate::profile::ProfileData;
+    use crate::runlog::{FromRecord, LogRow};
 
     fn patent() -> Profile {
         Profile::preset("patent-motor").unwrap()
@@ -425,7 +416,7 @@ mod tests {
     #[test]
     fn a_controller_profile_for_other_hardware_is_rejected_by_key() {
         let m = patent();
-        type Edit = fn(&mut Profile);
+        type Edit = fn(&mut ProfileData);
         let edits: [(&str, Edit); 6] = [
             ("drive.pwm_hz", |p| p.drive.pwm_hz = 25_000.0),
             ("drive.bus_voltage_v", |p| p.drive.bus_voltage_v *= 2.0),
@@ -435,40 +426,42 @@ mod tests {
             ("motor.pole_pairs", |p| p.motor.pole_pairs = 100),
         ];
         for (key, edit) in edits {
-            let mut c = m.clone();
+            let mut c = m.to_data();
             c.name = "ctl".into();
             edit(&mut c);
+            let c = c.validate("ctl").unwrap();
             let e = ClosedLoop::new(&m, &c, Mode::OpenLoop, Compensation::Patent, &SimOptions::default()).unwrap_err();
             assert!(matches!(&e, SimError::HardwareMismatch { key: k, .. } if *k == key), "{key}: {e:?}");
             let msg = e.to_string();
             assert!(msg.contains("patent-motor") && msg.contains("ctl") && msg.contains(key), "{msg}");
         }
         // The motor model and the controller's own settings may differ.
-        let mut c = m.clone();
+        let mut c = m.to_data();
         c.motor.resistance_ohm *= 1.2;
         c.motor.km_nm_per_a *= 0.8;
         c.motor.detent.pop();
         c.motor.coulomb_friction_nm = 0.0;
         c.drive.current_loop_bandwidth_hz = 800.0;
         c.servo.bandwidth_hz = 20.0;
+        let c = c.validate("ctl").unwrap();
         ClosedLoop::new(&m, &c, Mode::Servo, Compensation::Patent, &SimOptions::default()).unwrap();
     }
 
     #[test]
-    fn with_config_validates_the_motor_profile_and_matches_the_configuration() {
+    fn with_config_takes_only_a_valid_profile_and_matches_the_configuration() {
         let good = patent();
         let cfg = controller_config(&good, Mode::OpenLoop, Compensation::Patent).unwrap();
-        let mut bad = good.clone();
-        bad.motor.detent[0].order = 0;
-        let e = ClosedLoop::with_config(&bad, cfg, &SimOptions::default()).unwrap_err().to_string();
+        // A bad profile cannot be built, so it cannot reach the loop.
+        let e = good.edited("bad", |d| d.motor.detent[0].order = 0).unwrap_err().to_string();
         assert!(e.contains("motor.detent[0].order"), "{e}");
-        let mut bad = good.clone();
-        bad.motor.inductance_h = -1.0;
-        let e = ClosedLoop::with_config(&bad, cfg, &SimOptions::default()).unwrap_err().to_string();
+        let e = good.edited("bad", |d| d.motor.inductance_h = -1.0).unwrap_err().to_string();
         assert!(e.contains("motor.inductance_h"), "{e}");
-        let mut other = good.clone();
-        other.drive.pwm_hz = 10_000.0;
-        other.drive.current_loop_bandwidth_hz = 1000.0;
+        let other = good
+            .edited("other", |d| {
+                d.drive.pwm_hz = 10_000.0;
+                d.drive.current_loop_bandwidth_hz = 1000.0;
+            })
+            .unwrap();
         let e = ClosedLoop::with_config(&other, cfg, &SimOptions::default()).unwrap_err().to_string();
         assert!(e.contains("drive.pwm_hz"), "{e}");
     }

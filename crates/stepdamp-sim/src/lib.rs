@@ -21,9 +21,13 @@
 
 pub mod closed_loop;
 pub mod plant;
-pub mod profile;
+/// Motor profiles: [`stepdamp_profile`], re-exported where the simulator's users found them.
+pub mod profile {
+    pub use stepdamp_profile::*;
+}
 pub mod runlog;
 pub mod scenario;
+pub mod summary;
 pub mod sweep;
 
 pub use closed_loop::{
@@ -32,7 +36,8 @@ pub use closed_loop::{
 };
 pub use plant::{PlantParams, PlantState};
 pub use profile::{PRESETS, Profile, ProfileError};
-pub use scenario::{MAX_SPEED_RAD_S, RunMetrics, RunSpec, SETTLE_S, check_speed, run};
+pub use scenario::{RunMetrics, RunSpec, SETTLE_S, check_speed, max_speed_rad_s, run};
+pub use summary::SweepSummary;
 pub use sweep::{SweepRow, SweepSpec, linear_grid, sweep, sweep_with_table};
 
 #[cfg(test)]

@@ -16,7 +16,7 @@
 //! speed change that `Fs` alone makes in one integration step, so the model is never
 //! stiff. Integration is classical RK4 with the voltages held over the step.
 
-use crate::profile::Profile;
+use crate::profile::ProfileData;
 
 /// Plant parameters in SI units.
 #[derive(Clone, Debug, PartialEq)]
@@ -55,10 +55,10 @@ pub struct PlantState {
 }
 
 impl PlantParams {
-    /// The plant a profile describes, with no load torque. The profile should be valid
-    /// ([`Profile::validate`]; [`crate::ClosedLoop`] checks it): this never panics, but a
-    /// detent term of order 0 (meaningless) is ignored and a repeated order adds up.
-    pub fn from_profile(p: &Profile) -> Self {
+    /// The plant a profile describes, with no load torque. A [`crate::Profile`] is valid by its
+    /// type; unchecked data never panics here either, but a detent term of order 0
+    /// (meaningless) is ignored and a repeated order adds up.
+    pub fn from_profile(p: &ProfileData) -> Self {
         let max = p.motor.detent.iter().map(|h| usize::from(h.order)).max().unwrap_or(0);
         let mut detent = vec![(0.0, 0.0); max];
         for h in p.motor.detent.iter().filter(|h| h.order > 0) {
@@ -202,6 +202,7 @@ fn axpy(x: &PlantState, a: f64, k: &PlantState) -> PlantState {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::profile::Profile;
     use proptest::prelude::*;
 
     fn patent() -> PlantParams {
@@ -327,7 +328,7 @@ mod tests {
 
     #[test]
     fn a_profile_with_a_bad_detent_order_does_not_panic() {
-        let mut m = Profile::preset("patent-motor").unwrap();
+        let mut m = Profile::preset("patent-motor").unwrap().to_data();
         m.motor.detent[0].order = 0;
         let p = PlantParams::from_profile(&m);
         assert!(p.detent.len() <= usize::from(m.motor.detent.iter().map(|h| h.order).max().unwrap()));

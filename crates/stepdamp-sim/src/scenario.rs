@@ -13,8 +13,13 @@
 
 use crate::closed_loop::{ClosedLoop, PeriodRecord, SimError};
 
-/// Largest commanded speed in rad/s a run accepts (either sign).
-pub const MAX_SPEED_RAD_S: f64 = 10_000.0;
+/// Largest commanded speed in rad/s a run of a motor with `pole_pairs` at `pwm_hz` accepts
+/// (either sign): the controller's own limit ([`stepdamp_core::max_speed_rad_s`]; beyond it
+/// the controller would clamp the command, and the run would measure against a speed that
+/// was never commanded).
+pub fn max_speed_rad_s(pwm_hz: f64, pole_pairs: u16) -> f64 {
+    f64::from(stepdamp_core::max_speed_rad_s(pole_pairs, 1.0 / pwm_hz as f32))
+}
 
 /// Least time in s from the end of the ramp to the start of the measurement window.
 pub const SETTLE_S: f64 = 0.05;
@@ -77,13 +82,13 @@ impl RunSpec {
     }
 
     /// Checks the run before it is simulated: a finite non-zero speed within
-    /// ±[`MAX_SPEED_RAD_S`], finite non-negative times, and a duration long enough that at
+    /// ±[`max_speed_rad_s`], finite non-negative times, and a duration long enough that at
     /// least one whole electrical period fits after the standstill, the ramp and
     /// [`SETTLE_S`] (the error says the least duration that does).
     pub fn check(&self, pwm_hz: f64, pole_pairs: u16) -> Result<(), SimError> {
         let bad = |what: &'static str, reason: String| Err(SimError::Option { what, reason });
         let w = self.speed_rad_s;
-        check_speed(w)?;
+        check_speed(w, max_speed_rad_s(pwm_hz, pole_pairs))?;
         for (what, v) in [("dwell", self.dwell_s), ("ramp", self.ramp_s), ("measurement window", self.window_s)] {
             if !(v.is_finite() && (0.0..=1e6).contains(&v)) {
                 return bad(what, format!("{v} s must be a finite time ≥ 0 s"));
@@ -115,14 +120,17 @@ impl RunSpec {
     }
 }
 
-/// Checks a commanded speed: non-zero, finite, within ±[`MAX_SPEED_RAD_S`].
-pub fn check_speed(w: f64) -> Result<(), SimError> {
-    if w.is_finite() && w != 0.0 && w.abs() <= MAX_SPEED_RAD_S {
+/// Checks a commanded speed: non-zero, finite, within ±`max` rad/s ([`max_speed_rad_s`]).
+pub fn check_speed(w: f64, max: f64) -> Result<(), SimError> {
+    if w.is_finite() && w != 0.0 && w.abs() <= max {
         Ok(())
     } else {
         Err(SimError::Option {
             what: "speed",
-            reason: format!("{w} rad/s must be non-zero, finite and within ±{MAX_SPEED_RAD_S} rad/s"),
+            reason: format!(
+                "{w} rad/s must be non-zero, finite and within ±{max:.1} rad/s (the controller's limit: a quarter \
+                 electrical turn per control period)"
+            ),
         })
     }
 }
@@ -157,6 +165,8 @@ pub fn run(
         let t = k as f64 * ts;
         let w_cmd = spec.speed_at(t);
         let rec = lp.period(w_cmd);
+        // The speed the controller was commanded (f32, within its limit by `check`).
+        let w_cmd = f64::from(lp.controller_state().speed_command_rad_s());
         // The command the controller used this period, against the sampled rotor.
         let theta_cmd = rec.signals.theta_cmd.mechanical_rad_f64(nr);
         let angle = (f64::from(nr) * (theta_cmd - rec.plant.theta)).abs();
@@ -225,14 +235,16 @@ mod tests {
         for (spec, what) in [
             (RunSpec::at(0.0), "speed"),
             (RunSpec::at(f64::NAN), "speed"),
-            (RunSpec::at(-MAX_SPEED_RAD_S * 1.01), "speed"),
+            (RunSpec::at(-max_speed_rad_s(pwm, nr) * 1.01), "speed"),
+            (RunSpec::at(700.0), "speed"),
             (RunSpec { ramp_s: -1.0, ..RunSpec::at(5.0) }, "ramp"),
             (RunSpec { duration_s: f64::INFINITY, ..RunSpec::at(5.0) }, "duration"),
         ] {
             let e = spec.check(pwm, nr).unwrap_err();
             assert!(matches!(e, SimError::Option { what: w, .. } if w == what), "{spec:?}: {e:?}");
         }
-        RunSpec::at(-MAX_SPEED_RAD_S).check(pwm, nr).unwrap();
+        RunSpec::at(-max_speed_rad_s(pwm, nr)).check(pwm, nr).unwrap();
+        RunSpec::at(628.0).check(pwm, nr).unwrap();
         RunSpec::at(1.0).check(pwm, nr).unwrap();
     }
 

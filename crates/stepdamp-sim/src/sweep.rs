@@ -6,11 +6,10 @@
 //! open loop and skips its servo lanes; a servo-only sweep that asks for it is an error.
 
 use crate::closed_loop::{
-    ClosedLoop, Compensation, SimError, SimOptions, check_mode_compensation, check_same_hardware, compensation_name,
-    controller_config, mode_name,
+    ClosedLoop, Compensation, SimError, SimOptions, check_mode_compensation, check_same_hardware, controller_config,
 };
 use crate::profile::Profile;
-use crate::scenario::{RunSpec, check_speed, run};
+use crate::scenario::{RunSpec, check_speed, max_speed_rad_s, run};
 use rayon::prelude::*;
 use serde::Serialize;
 use stepdamp_core::{CorrectionTable, Mode};
@@ -33,10 +32,10 @@ pub struct SweepSpec {
 /// One row of the sweep table (design.md §6; column names are the field names).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct SweepRow {
-    /// `open-loop` or `servo`.
-    pub mode: &'static str,
-    /// Compensation name.
-    pub compensation: &'static str,
+    /// Control mode (`open-loop` or `servo` in the table).
+    pub mode: Mode,
+    /// Compensation (`off`, `patent` or `estimated` in the table).
+    pub compensation: Compensation,
     /// Commanded speed in rad/s.
     pub speed_cmd_rad_s: f64,
     /// RMS velocity error in rad/s.
@@ -101,8 +100,6 @@ impl SweepSpec {
         controller_name: &str,
         table: Option<&CorrectionTable>,
     ) -> Result<(), SimError> {
-        motor.validate(motor_name)?;
-        controller.validate(controller_name)?;
         check_same_hardware(motor, motor_name, controller, controller_name)?;
         let empty = |what: &'static str| Err(SimError::Option { what, reason: "the list is empty".to_string() });
         if self.modes.is_empty() {
@@ -121,7 +118,7 @@ impl SweepSpec {
         }
         let nr = motor.motor.pole_pairs;
         for &w in &self.speeds_rad_s {
-            check_speed(w)?;
+            check_speed(w, max_speed_rad_s(motor.drive.pwm_hz, nr))?;
         }
         // The longest electrical period is at the lowest speed: if that one fits, all do.
         let lowest = self.speeds_rad_s.iter().copied().fold(f64::INFINITY, |a, w| a.min(w.abs()));
@@ -176,8 +173,8 @@ pub fn sweep_with_table(
             let m = run(&mut lp, &RunSpec { speed_rad_s: w, ..spec.run }, pwm, |_, _| {});
             tick();
             Ok(SweepRow {
-                mode: mode_name(mode),
-                compensation: compensation_name(comp),
+                mode,
+                compensation: comp,
                 speed_cmd_rad_s: w,
                 vel_err_rms_rad_s: m.vel_err_rms_rad_s,
                 vel_err_pp_rad_s: m.vel_err_pp_rad_s,

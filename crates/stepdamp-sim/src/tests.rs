@@ -26,7 +26,7 @@ fn readme_sweep() -> &'static (Vec<f64>, Vec<SweepRow>) {
 }
 
 fn lane<'a>(rows: &'a [SweepRow], mode: &str, comp: &str) -> Vec<&'a SweepRow> {
-    rows.iter().filter(|r| r.mode == mode && r.compensation == comp).collect()
+    rows.iter().filter(|r| r.mode.name() == mode && r.compensation.name() == comp).collect()
 }
 
 /// Largest peak-to-peak error within ±10 % of `speed`.
@@ -147,11 +147,14 @@ fn holding_current_sets_the_natural_frequency() {
     // lowers the stiffness by about Km²·R/(ωc·L²) (1.4 of 28.5 N·m/rad at 1.5 kHz: −2.4 % in
     // frequency, measured −2.0 %; a third of that at 5 kHz): a stiff loop isolates the
     // magnetic spring.
-    let mut m = patent();
-    m.motor.detent.clear();
-    m.motor.coulomb_friction_nm = 0.0;
-    m.drive.current_loop_bandwidth_hz = 5000.0;
-    m.drive.computation_delay_periods = 0;
+    let m = patent()
+        .edited("stiff", |m| {
+            m.motor.detent.clear();
+            m.motor.coulomb_friction_nm = 0.0;
+            m.drive.current_loop_bandwidth_hz = 5000.0;
+            m.drive.computation_delay_periods = 0;
+        })
+        .unwrap();
     let opts = SimOptions::default();
     let mut lp = ClosedLoop::new(&m, &m, Mode::OpenLoop, Compensation::Off, &opts).unwrap();
     let pwm = m.drive.pwm_hz;
@@ -258,9 +261,12 @@ fn estimated_angle_is_no_worse_than_the_patent_with_r_and_km_off_by_20_percent()
         ("R-20% Km+20%", 0.8, 1.2),
         ("R-20% Km-20%", 0.8, 0.8),
     ] {
-        let mut ctl = p.clone();
-        ctl.motor.resistance_ohm *= r;
-        ctl.motor.km_nm_per_a *= km;
+        let ctl = p
+            .edited("mis-identified", |c| {
+                c.motor.resistance_ohm *= r;
+                c.motor.km_nm_per_a *= km;
+            })
+            .unwrap();
         for load in [0.0, 0.171] {
             let rows = open_loop_sweep(&p, &ctl, &[Compensation::Patent, Compensation::Estimated], load);
             let pat = lane(&rows, "open-loop", "patent");

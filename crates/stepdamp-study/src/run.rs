@@ -10,6 +10,7 @@ use crate::spec::{ControllerModel, Study, StudyError, Variation};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
+use stepdamp_sim::profile::ProfileData;
 use stepdamp_sim::sweep::derived_seed;
 use stepdamp_sim::{
     Profile, RunSpec, SimOptions, SweepRow, SweepSpec, compensation_name, linear_grid, mode_name, sweep,
@@ -38,7 +39,7 @@ pub struct Table {
     pub rows: Vec<Vec<f64>>,
 }
 
-fn apply(v: &Variation, p: &mut Profile, rng: &mut ChaCha8Rng) -> f64 {
+fn apply(v: &Variation, p: &mut ProfileData, rng: &mut ChaCha8Rng) -> f64 {
     let m = &mut p.motor;
     let slots: [&mut f64; 6] = [
         &mut m.resistance_ohm,
@@ -84,18 +85,18 @@ impl Study {
     /// Draws variant `index`.
     pub fn variant(&self, index: u64) -> Result<Variant, StudyError> {
         let mut rng = ChaCha8Rng::seed_from_u64(derived_seed(self.spec.seed, index));
-        let mut plant = self.nominal.clone();
+        let mut plant = self.nominal.to_data();
         let load = apply(&self.spec.plant, &mut plant, &mut rng);
         let mut controller = match self.spec.controller {
-            ControllerModel::Nominal => self.nominal.clone(),
+            ControllerModel::Nominal => self.nominal.to_data(),
             ControllerModel::Plant => plant.clone(),
         };
         apply(&self.spec.controller_error, &mut controller, &mut rng);
         plant.name = format!("{} variant {index}", self.nominal.name);
         controller.name = format!("{} controller model {index}", self.nominal.name);
         let bad = |e: stepdamp_sim::ProfileError| StudyError::Variant { index, message: e.to_string() };
-        plant.validate("plant").map_err(bad)?;
-        controller.validate("controller").map_err(bad)?;
+        let plant = plant.validate("plant").map_err(bad)?;
+        let controller = controller.validate("controller").map_err(bad)?;
         if !(load.is_finite() && load >= 0.0) {
             return Err(StudyError::Variant { index, message: format!("load_torque_nm = {load}: must be ≥ 0 N·m") });
         }

@@ -1,0 +1,153 @@
+//! Running an identification plan on the simulator (feature `simulate`): the logs a real
+//! drive would record, in parallel with deterministic seeds.
+
+use crate::log::RunLog;
+use crate::plan::{Plan, PlanError, PlanOptions, PlannedRun, plan};
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+use stepdamp_core::Mode;
+use stepdamp_profile::Profile;
+use stepdamp_sim::runlog::{FromRecord, LogRow, write_csv};
+use stepdamp_sim::{ClosedLoop, Compensation, RunSpec, SimError, SimOptions, run};
+
+/// Seed of run `index` from the base seed: [`stepdamp_sim::sweep::derived_seed`], the same
+/// mixing as the sweep's lanes (deterministic, independent of the number of threads).
+pub fn run_seed(base: u64, index: u64) -> u64 {
+    stepdamp_sim::sweep::derived_seed(base, index)
+}
+
+/// Simulates one planned run of `motor` (the simulated plant) with a servo controller
+/// configured from `controller` and compensation `comp`; returns the run log rows.
+pub fn simulate_run(
+    motor: &Profile,
+    controller: &Profile,
+    comp: Compensation,
+    r: &PlannedRun,
+    current_noise_a: f64,
+    seed: u64,
+) -> Result<Vec<LogRow>, SimError> {
+    let opts = SimOptions { current_noise_a, seed, ..SimOptions::default() };
+    let mut lp = ClosedLoop::new(motor, controller, Mode::Servo, comp, &opts)?;
+    let mut spec = RunSpec::at(r.speed_rad_s);
+    spec.dwell_s = r.dwell_s;
+    spec.ramp_s = r.ramp_s;
+    spec.duration_s = r.duration_s;
+    spec.window_s = (r.duration_s - r.dwell_s - r.ramp_s).max(0.0);
+    let pwm = motor.drive.pwm_hz;
+    let nr = motor.motor.pole_pairs;
+    let mut rows = Vec::with_capacity((r.duration_s * pwm) as usize + 1);
+    run(&mut lp, &spec, pwm, |k, rec| rows.push(LogRow::from_record(k, pwm, nr, rec)));
+    Ok(rows)
+}
+
+/// Simulates every run of `plan` on `motor` in parallel (seed of run `i`:
+/// [`run_seed`]`(seed, i)`), with the controller of `controller` and `comp`, and hands each
+/// run's rows to `each` as soon as it is done; returns what `each` returned, in plan order.
+/// The set-up is checked once before the parallel part, so a bad one fails early.
+fn for_each_run<T: Send, E: From<SimError> + Send>(
+    motor: &Profile,
+    controller: &Profile,
+    comp: Compensation,
+    plan: &Plan,
+    current_noise_a: f64,
+    seed: u64,
+    each: impl Fn(&PlannedRun, Vec<LogRow>) -> Result<T, E> + Sync,
+) -> Result<Vec<T>, E> {
+    ClosedLoop::new(motor, controller, Mode::Servo, comp, &SimOptions { current_noise_a, ..SimOptions::default() })?;
+    plan.runs
+        .par_iter()
+        .enumerate()
+        .map(|(i, r)| each(r, simulate_run(motor, controller, comp, r, current_noise_a, run_seed(seed, i as u64))?))
+        .collect()
+}
+
+/// Simulates every run of `plan` on `motor` (in parallel; seeds from `seed`), with the
+/// controller of `controller` (the plan's profile for identification runs) and `comp`.
+/// Returns the logs in plan order. `tick` is called once per finished run.
+pub fn simulate_plan(
+    motor: &Profile,
+    controller: &Profile,
+    comp: Compensation,
+    plan: &Plan,
+    current_noise_a: f64,
+    seed: u64,
+    tick: &(dyn Fn() + Sync),
+) -> Result<Vec<RunLog>, SimError> {
+    for_each_run(motor, controller, comp, plan, current_noise_a, seed, |r, rows| {
+        tick();
+        Ok(RunLog::from_rows(&rows, &r.name))
+    })
+}
+
+/// What [`run_plan`] did.
+#[derive(Clone, Debug)]
+pub struct PlanRun {
+    /// The plan.
+    pub plan: Plan,
+    /// The log files written, in plan order.
+    pub files: Vec<PathBuf>,
+}
+
+/// Plans the identification from the `base` profile (what the user knows of the motor: its
+/// `J` and detent may be guesses, see [`plan`]), simulates the runs on `motor` (the plant:
+/// servo mode with the plan's controller, compensation off, the options' current noise, the
+/// motor's encoder) in parallel with deterministic seeds (the same as [`simulate_plan`]
+/// with `o.seed`), and writes one run-log CSV per run into `out_dir` (`<run name>.csv`,
+/// design.md §6 columns), creating it if needed. Each file is written to a temporary name
+/// and renamed when complete; on an error, the files already written are removed again.
+pub fn run_plan(
+    motor: &Profile,
+    base: &Profile,
+    out_dir: &Path,
+    o: &PlanOptions,
+    tick: &(dyn Fn() + Sync),
+) -> Result<PlanRun, PlanError> {
+    let plan = plan(base, o)?;
+    std::fs::create_dir_all(out_dir).map_err(|source| PlanError::Write { path: out_dir.to_path_buf(), source })?;
+    let written = std::sync::Mutex::new(Vec::new());
+    let done = for_each_run(motor, &plan.profile, Compensation::Off, &plan, o.current_noise_a, o.seed, |r, rows| {
+        let path = out_dir.join(format!("{}.csv", r.name));
+        write_rows_atomic(&path, &rows)?;
+        written.lock().unwrap_or_else(std::sync::PoisonError::into_inner).push(path.clone());
+        tick();
+        Ok::<_, PlanError>(path)
+    });
+    match done {
+        Ok(files) => Ok(PlanRun { plan, files }),
+        Err(e) => {
+            for f in written.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner) {
+                let _ = std::fs::remove_file(f);
+            }
+            Err(e)
+        }
+    }
+}
+
+/// Writes log rows to `path` through a temporary file in the same directory.
+pub fn write_rows_atomic(path: &Path, rows: &[LogRow]) -> Result<(), PlanError> {
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let tmp = path.with_file_name(format!(".tmp-{}-{name}", std::process::id()));
+    let write = || -> std::io::Result<()> {
+        let f = std::fs::File::create(&tmp)?;
+        let mut w = std::io::BufWriter::with_capacity(1 << 20, f);
+        write_csv(&mut w, rows).map_err(std::io::Error::other)?;
+        std::io::Write::flush(&mut w)?;
+        drop(w);
+        std::fs::rename(&tmp, path)
+    };
+    write().map_err(|source| {
+        let _ = std::fs::remove_file(&tmp);
+        PlanError::Write { path: path.to_path_buf(), source }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn seeds_differ_per_run_and_repeat() {
+        assert_ne!(run_seed(1, 0), run_seed(1, 1));
+        assert_eq!(run_seed(7, 3), run_seed(7, 3));
+    }
+}

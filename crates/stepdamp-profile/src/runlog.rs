@@ -1,0 +1,37 @@
+//! The run log: one CSV row per control period, written by the simulator (and by a real
+//! drive) and read by identification. The column names are the field names, in this order.
+
+use serde::{Deserialize, Serialize};
+
+/// One row of a run log. Column names are the field names.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct LogRow {
+    /// Time in s.
+    pub t_s: f64,
+    /// Commanded mechanical angle in rad.
+    pub theta_cmd_rad: f64,
+    /// Encoder angle in rad (quantised).
+    pub theta_fb_rad: f64,
+    /// Filtered encoder velocity in rad/s.
+    pub omega_fb_rad_s: f64,
+    /// Sampled phase A current in A.
+    pub i_a_a: f64,
+    /// Sampled phase B current in A.
+    pub i_b_a: f64,
+    /// d current in the controller's frame in A.
+    pub i_d_a: f64,
+    /// q current in the controller's frame in A.
+    pub i_q_a: f64,
+    /// q current command in A.
+    pub iq_cmd_a: f64,
+}
+
+/// Writes rows as CSV with the header of design.md §6.
+pub fn write_csv<W: std::io::Write>(w: W, rows: &[LogRow]) -> Result<(), csv::Error> {
+    let mut wr = csv::Writer::from_writer(w);
+    for r in rows {
+        wr.serialize(r)?;
+    }
+    wr.flush()?;
+    Ok(())
+}

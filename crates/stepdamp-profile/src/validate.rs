@@ -1,0 +1,108 @@
+//! The checks behind [`crate::ProfileData::validate`].
+
+use crate::data::ProfileData;
+use crate::error::ProfileError;
+use crate::profile::Profile;
+use stepdamp_core::limits::{self, Limit, Num};
+use stepdamp_core::{Compensation, Mode};
+
+fn out_of_range(origin: &str, key: &str, value: f64, limit: &'static Limit) -> ProfileError {
+    ProfileError::OutOfRange { path: origin.to_string(), key: key.to_string(), value, limit }
+}
+
+fn within(origin: &str, key: &str, value: f64, limit: &'static Limit) -> Result<(), ProfileError> {
+    if limit.contains(value) { Ok(()) } else { Err(out_of_range(origin, key, value, limit)) }
+}
+
+fn invalid(origin: &str, key: &str, value: String, reason: &str) -> ProfileError {
+    ProfileError::Invalid { path: origin.to_string(), key: key.to_string(), value, reason: reason.to_string() }
+}
+
+/// Every key within its range ([`stepdamp_core::limits`]) and the relations between keys.
+pub(crate) fn check(p: &ProfileData, origin: &str) -> Result<(), ProfileError> {
+    if p.name.trim().is_empty() {
+        return Err(invalid(origin, "name", format!("{:?}", p.name), "must not be empty"));
+    }
+    let m = &p.motor;
+    for (l, v) in [
+        (&limits::KM_NM_PER_A, m.km_nm_per_a),
+        (&limits::POLE_PAIRS, f64::from(m.pole_pairs)),
+        (&limits::RESISTANCE_OHM, m.resistance_ohm),
+        (&limits::INDUCTANCE_H, m.inductance_h),
+        (&limits::INERTIA_KG_M2, m.inertia_kg_m2),
+        (&limits::VISCOUS_NM_S_PER_RAD, m.viscous_nm_s_per_rad),
+        (&limits::COULOMB_FRICTION_NM, m.coulomb_friction_nm),
+    ] {
+        within(origin, l.key, v, l)?;
+    }
+    for (i, h) in m.detent.iter().enumerate() {
+        let key = |f: &str| format!("motor.detent[{i}].{f}");
+        within(origin, &key("order"), f64::from(h.order), &limits::DETENT_ORDER)?;
+        if m.detent[..i].iter().any(|o| o.order == h.order) {
+            return Err(invalid(origin, &key("order"), h.order.to_string(), "this order is listed twice"));
+        }
+        within(origin, &key("amplitude_nm"), h.amplitude_nm, &limits::DETENT_AMPLITUDE_NM)?;
+        within(origin, &key("phase_rad"), h.phase_rad, &limits::DETENT_PHASE_RAD)?;
+    }
+    let d = &p.drive;
+    for (l, v) in [
+        (&limits::BUS_VOLTAGE_V, d.bus_voltage_v),
+        (&limits::PWM_HZ, d.pwm_hz),
+        (&limits::CURRENT_LIMIT_A, d.current_limit_a),
+        (&limits::HOLDING_CURRENT_A, d.holding_current_a),
+        (&limits::CURRENT_LOOP_BANDWIDTH_HZ, d.current_loop_bandwidth_hz),
+        (&limits::COMPUTATION_DELAY_PERIODS, f64::from(d.computation_delay_periods)),
+        (&limits::COUNTS_PER_REV, f64::from(p.encoder.counts_per_rev)),
+        (&limits::SERVO_BANDWIDTH_HZ, p.servo.bandwidth_hz),
+        (&limits::VELOCITY_FILTER_HZ, p.servo.velocity_filter_hz),
+    ] {
+        within(origin, l.key, v, l)?;
+    }
+    if d.holding_current_a > d.current_limit_a {
+        let key = limits::HOLDING_CURRENT_A.key;
+        return Err(invalid(
+            origin,
+            key,
+            Num(d.holding_current_a).to_string(),
+            "must not exceed drive.current_limit_a",
+        ));
+    }
+    if d.current_loop_bandwidth_hz > d.pwm_hz * limits::CURRENT_LOOP_BANDWIDTH_PER_PWM {
+        let key = limits::CURRENT_LOOP_BANDWIDTH_HZ.key;
+        let v = Num(d.current_loop_bandwidth_hz).to_string();
+        return Err(invalid(origin, key, v, "must be below a quarter of drive.pwm_hz"));
+    }
+    Ok(())
+}
+
+/// The derived quantities are finite and the controller accepts the profile in every mode.
+/// Within the ranges this holds; the check keeps it so if a range is ever widened.
+pub(crate) fn check_derived(p: &Profile, origin: &str) -> Result<(), ProfileError> {
+    let gains = p.servo_gains();
+    // Each must be finite and > 0 (the damping ratio ≥ 0: D may be zero).
+    let derived = [
+        ("the natural frequency ω_n", p.natural_frequency_rad_s()),
+        ("the damping ratio", p.damping_ratio() + f64::MIN_POSITIVE),
+        ("the first resonance speed", p.resonance_speed_rad_s(1)),
+        ("the servo velocity gain", f64::from(gains.velocity_nm_s_per_rad)),
+        ("the servo integral gain", f64::from(gains.position_integral_nm_per_rad_s)),
+    ];
+    for (what, v) in derived {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(invalid(
+                origin,
+                limits::INERTIA_KG_M2.key,
+                Num(p.motor.inertia_kg_m2).to_string(),
+                &format!("with the other keys {what} is {v}, not a finite number > 0"),
+            ));
+        }
+    }
+    for mode in [Mode::OpenLoop, Mode::Servo] {
+        for comp in [Compensation::Off, Compensation::Patent, Compensation::Estimated] {
+            if let Err(e) = p.controller_config(mode, comp) {
+                return Err(ProfileError::Controller { path: origin.to_string(), source: e });
+            }
+        }
+    }
+    Ok(())
+}
