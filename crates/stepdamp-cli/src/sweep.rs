@@ -49,7 +49,7 @@ pub struct SweepArgs {
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub current_noise: f64,
     /// RK4 steps per PWM period.
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = SimOptions::default().substeps)]
     pub substeps: u32,
     /// Seed of the noise generators.
     #[arg(long, default_value_t = 1)]
