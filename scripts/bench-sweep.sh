@@ -120,7 +120,7 @@ awk -F, '
     }' "$tmp/out-old/sweep.csv" "$tmp/out-new/sweep.csv"
 
 if [[ ${BENCH_CRITERION:-1} != 0 ]]; then
-    echo "== criterion, working tree: one control period, one RK4 step, four periods in lock-step"
+    echo "== criterion, working tree: one RK4 step, one control period, run-periods in lock-step"
     cargo bench --quiet -p stepdamp-sim --bench sim -- --warm-up-time 1 --measurement-time 3 \
         'plant_rk4_step|closed_loop_period|lockstep' 2>/dev/null |
         grep -E '^[a-z_/0-9]+ *$|time:|thrpt:' || true

@@ -1,4 +1,4 @@
-//! Simulator throughput: one plant RK4 step, one closed-loop control period, four control
+//! Simulator throughput: one plant RK4 step, one closed-loop control period, LANES control
 //! periods in lock-step (the sweep's inner loop, reported per run-period), and the README
 //! sweep (2 modes × 2 compensations × 60 speeds × 1.5 s). `scripts/bench-sweep.sh` runs
 //! the per-period ones beside its CPU-time comparison of the whole sweep.
@@ -31,7 +31,7 @@ fn bench(c: &mut Criterion) {
     let mut lp = ClosedLoop::new(&m, &m, Mode::Servo, Compensation::Patent, &SimOptions::default()).unwrap();
     c.bench_function("closed_loop_period_servo", |b| b.iter(|| black_box(lp.period(8.4))));
 
-    // Four 0.05 s runs (1000 periods each) in lock-step, as a sweep group runs them.
+    // LANES 0.05 s runs (1000 periods each) in lock-step, as a sweep group runs them.
     let run = RunSpec { dwell_s: 0.0, ramp_s: 0.0, duration_s: 0.05, window_s: 0.05, ..RunSpec::at(8.4) };
     let (n, _) = run.periods(m.drive.pwm_hz, m.motor.pole_pairs);
     let specs: Vec<RunSpec> = (0..LANES).map(|i| RunSpec { speed_rad_s: 8.4 + i as f64, ..run }).collect();

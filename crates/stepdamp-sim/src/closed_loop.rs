@@ -362,7 +362,13 @@ impl ClosedLoop {
         &self.st
     }
 
+    #[inline]
     fn sample_current(&mut self, i: f64) -> f32 {
+        if self.noise > 0.0 || self.lsb > 0.0 { self.sample_current_noisy(i) } else { i as f32 }
+    }
+
+    #[inline(never)]
+    fn sample_current_noisy(&mut self, i: f64) -> f32 {
         let mut v = i;
         if self.noise > 0.0 {
             let n: f64 = StandardNormal.sample(&mut self.rng);
@@ -401,7 +407,7 @@ impl ClosedLoop {
         let m = Measurement {
             i_a_a: self.sample_current(sampled.i_a),
             i_b_a: self.sample_current(sampled.i_b),
-            encoder_count: ((sampled.theta * self.counts_per_rad).floor() as i64) as u32,
+            encoder_count: (floor_i64(sampled.theta * self.counts_per_rad)) as u32,
         };
         // `!=` is also true while the last command is NaN, so the first period sets it.
         if speed_cmd_rad_s != self.last_speed_cmd {
@@ -423,10 +429,34 @@ impl ClosedLoop {
     }
 }
 
+/// `x.floor() as i64` without the library call `floor` is on baseline x86-64 (no SSE4.1
+/// `roundsd`): truncate, then step down when that rounded up. Same result for every `f64`,
+/// including NaN (0) and out-of-range values (saturated).
+#[inline]
+fn floor_i64(x: f64) -> i64 {
+    let t = x as i64;
+    if (t as f64) > x { t.saturating_sub(1) } else { t }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::runlog::LogRow;
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn floor_i64_is_floor(x in proptest::num::f64::ANY) {
+            prop_assert_eq!(floor_i64(x), x.floor() as i64);
+        }
+    }
+
+    #[test]
+    fn floor_i64_is_floor_at_the_edges() {
+        for x in [0.0, -0.0, -0.5, 0.5, -1.0, 1e300, -1e300, f64::NAN, f64::INFINITY, -f64::INFINITY, 9.2e18, -9.3e18] {
+            assert_eq!(floor_i64(x), x.floor() as i64, "{x}");
+        }
+    }
 
     fn patent() -> Profile {
         Profile::preset("patent-motor").unwrap()

@@ -11,6 +11,10 @@ use crate::closed_loop::{ClosedLoop, PeriodRecord, SimError};
 use crate::lanes::{Integrator, StateLanes};
 use crate::plant::PlantState;
 use crate::scenario::{RunMetrics, RunSpec};
+use stepdamp_core::angle::UNITS_PER_ELECTRICAL_REV;
+
+/// Electrical rad per unit of the controller's fixed-point position.
+const RAD_PER_UNIT: f64 = std::f64::consts::TAU / UNITS_PER_ELECTRICAL_REV;
 
 /// Velocity-error metrics of one run, accumulated period by period.
 #[derive(Clone, Debug)]
@@ -48,8 +52,9 @@ impl Window {
     pub(crate) fn add(&mut self, k: usize, w_cmd: f64, rec: &PeriodRecord) -> Result<(), SimError> {
         check_finite(self.time(k), &rec.plant)?;
         // The command the controller used this period, against the sampled rotor.
-        let theta_cmd = rec.signals.theta_cmd.mechanical_rad_f64(self.nr);
-        let angle = (f64::from(self.nr) * (theta_cmd - rec.plant.theta)).abs();
+        // Electrical: the command's fixed-point angle less Nr·θ (no division per period).
+        let theta_cmd_e = rec.signals.theta_cmd.0 as f64 * RAD_PER_UNIT;
+        let angle = (theta_cmd_e - f64::from(self.nr) * rec.plant.theta).abs();
         self.max_angle = self.max_angle.max(angle);
         if k >= self.start {
             let e = rec.plant.omega - w_cmd;

@@ -144,9 +144,9 @@ fn sweeps_are_identical_on_any_number_of_threads() {
 
 #[test]
 fn runs_in_lock_step_are_bit_identical_to_runs_alone() {
-    // A sweep integrates four runs per SIMD lane group; each must equal its run alone,
+    // A sweep integrates LANES runs per SIMD lane group; each must equal its run alone,
     // with noise, quantisation, a load (Coulomb sticking at the start), both modes and all
-    // compensations, and a short last group (7 pairs·speeds is not a multiple of 4).
+    // compensations, and a short last group (15 runs is not a multiple of LANES).
     let m = patent();
     let spec = SweepSpec {
         speeds_rad_s: vec![2.0, 8.4, 30.0],
