@@ -12,7 +12,8 @@
 //! Costs that this layout removes compared with a scalar RK4 over `f64::sin_cos`:
 //! - `sin`/`cos` of the electrical angle come from [`sin_cos`], a branch-free polynomial
 //!   (fdlibm's kernels after a Cody–Waite reduction) that vectorises over the lanes,
-//!   instead of the C library's scalar `sincos`;
+//!   instead of the C library's scalar `sincos`, once per RK4 step: the other three
+//!   stages rotate it by their small angle step (`rotated`);
 //! - the detent series `Σ A_k sin(kθe + φ_k)` takes `sin kθe, cos kθe` by angle addition
 //!   along a ladder of squarings and single steps that skips the orders not present
 //!   (orders 1, 2, 4: two complex squarings), in registers;
@@ -136,6 +137,46 @@ fn sin_cos_lanes<const N: usize>(x: &[f64; N]) -> ([f64; N], [f64; N]) {
         }
     }
     (s, c)
+}
+
+/// Largest rotation in rad [`rotated`] takes by its short series (the README sweep's
+/// largest stage step is 0.1 rad at 40 rad/s and 20 kHz).
+pub const ROTATION_LIMIT: f64 = 0.25;
+
+/// `(sin, cos)` of the electrical angle `θe + δ` per lane, from `sc` = `(sin θe, cos θe)`:
+/// rotated by `δ` with `sin δ`, `cos δ` by their Taylor series to δ¹³ and δ¹² (truncation
+/// below 1e-19 for `|δ| ≤` [`ROTATION_LIMIT`]). A lane with a larger (or non-finite) `δ`
+/// takes [`sin_cos`] of `Nr·θ` from `theta` instead, decided by its own values only.
+#[inline(always)]
+fn rotated<const N: usize>(sc: &SinCosLanes<N>, delta: &[f64; N], theta: &[f64; N], nr: f64) -> SinCosLanes<N> {
+    let mut out = ([0.0; N], [0.0; N]);
+    for l in 0..N {
+        let d = delta[l];
+        let z = d * d;
+        let sd = d
+            * (1.0
+                + z * (-1.0 / 6.0
+                    + z * (1.0 / 120.0
+                        + z * (-1.0 / 5040.0
+                            + z * (1.0 / 362_880.0 + z * (-1.0 / 39_916_800.0 + z * (1.0 / 6_227_020_800.0)))))));
+        let cd = 1.0
+            + z * (-0.5
+                + z * (1.0 / 24.0
+                    + z * (-1.0 / 720.0
+                        + z * (1.0 / 40_320.0 + z * (-1.0 / 3_628_800.0 + z * (1.0 / 479_001_600.0))))));
+        out.0[l] = sc.0[l] * cd + sc.1[l] * sd;
+        out.1[l] = sc.1[l] * cd - sc.0[l] * sd;
+    }
+    let in_range = delta.iter().fold(true, |ok, d| ok & (d.abs() <= ROTATION_LIMIT));
+    if !in_range {
+        for l in 0..N {
+            if delta[l].is_nan() || delta[l].abs() > ROTATION_LIMIT {
+                let x = nr * theta[l];
+                (out.0[l], out.1[l]) = if x.abs() <= SIN_COS_POLY_LIMIT { sin_cos(x) } else { x.sin_cos() };
+            }
+        }
+    }
+    out
 }
 
 /// Per-lane `(sin, cos)` of one multiple of the electrical angle.
@@ -333,14 +374,15 @@ impl<const N: usize> Integrator<N> {
         self.stick(x, Some(&sc1), load, band);
         let x1 = *x;
         let k1 = self.derivative(&x1, &sc1.0, &sc1.1, va, vb, load, band);
+        // The stages' angles are the first one's advanced by δ = Nr·a·ω: a rotation.
         let x2 = axpy(&x1, 0.5 * h, &k1);
-        let sc2 = sin_cos_lanes(&x2.theta.map(|t| nr * t));
+        let sc2 = rotated(&sc1, &k1.theta.map(|w| nr * (0.5 * h * w)), &x2.theta, nr);
         let k2 = self.derivative(&x2, &sc2.0, &sc2.1, va, vb, load, band);
         let x3 = axpy(&x1, 0.5 * h, &k2);
-        let sc3 = sin_cos_lanes(&x3.theta.map(|t| nr * t));
+        let sc3 = rotated(&sc1, &k2.theta.map(|w| nr * (0.5 * h * w)), &x3.theta, nr);
         let k3 = self.derivative(&x3, &sc3.0, &sc3.1, va, vb, load, band);
         let x4 = axpy(&x1, h, &k3);
-        let sc4 = sin_cos_lanes(&x4.theta.map(|t| nr * t));
+        let sc4 = rotated(&sc1, &k3.theta.map(|w| nr * (h * w)), &x4.theta, nr);
         let k4 = self.derivative(&x4, &sc4.0, &sc4.1, va, vb, load, band);
         let w = h / 6.0;
         let comb = |x: &[f64; N], a: &[f64; N], b: &[f64; N], c: &[f64; N], d: &[f64; N]| {
@@ -417,6 +459,31 @@ mod tests {
             check(x);
         }
         println!("largest |error| against f64::sin_cos: {worst:e}");
+    }
+
+    #[test]
+    fn a_rotated_angle_matches_its_sine_and_cosine_and_falls_back_beyond_the_limit() {
+        let nr = 50.0;
+        for i in -2000..=2000 {
+            let theta = f64::from(i) * 0.0317;
+            let sc = sin_cos_lanes(&[nr * theta]);
+            for j in -100..=100 {
+                // Up to twice the limit: half of these take the fallback.
+                let delta = f64::from(j) * (2.0 * ROTATION_LIMIT / 100.0);
+                let th2 = theta + delta / nr;
+                let (s, c) = rotated(&sc, &[delta], &[th2], nr);
+                if delta.abs() <= ROTATION_LIMIT {
+                    // The rotation by the library's sin δ, cos δ, to a few ulp.
+                    let (sd, cd) = delta.sin_cos();
+                    let (s0, c0) = (sc.0[0] * cd + sc.1[0] * sd, sc.1[0] * cd - sc.0[0] * sd);
+                    assert!((s[0] - s0).abs() <= 1e-15 && (c[0] - c0).abs() <= 1e-15, "θ {theta} δ {delta}");
+                } else {
+                    assert_eq!((s[0], c[0]), sin_cos(nr * th2), "θ {theta} δ {delta}");
+                }
+            }
+        }
+        let (s, c) = rotated(&sin_cos_lanes(&[1.0]), &[f64::NAN], &[0.5], 2.0);
+        assert_eq!((s[0], c[0]), sin_cos(1.0), "a NaN δ takes the angle itself");
     }
 
     #[test]
