@@ -129,7 +129,7 @@ pub fn run(a: SimulateArgs, _g: &Global) -> Result<()> {
                 Err(e) => write_error = Some(e),
             }
         }
-    });
+    })?;
     let written = match log {
         Some((files, mut w, path)) => {
             let flushed = match write_error {

@@ -50,7 +50,7 @@ pub struct SweepArgs {
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub current_noise: f64,
     /// RK4 steps per PWM period.
-    #[arg(long, default_value_t = 2, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = i64::from(SimOptions::default().substeps), allow_negative_numbers = true)]
     pub substeps: i64,
     /// Seed of the noise generators.
     #[arg(long, default_value_t = 1, allow_negative_numbers = true)]

@@ -62,7 +62,8 @@ fn pp(p: &Profile, cfg: Config, speed: f64, duration_s: f64) -> Result<f64, Expo
         ClosedLoop::with_config(p, cfg, &SimOptions::default()).map_err(|e| ExportError::Sim(e.to_string()))?;
     let spec = RunSpec { duration_s, window_s: duration_s * 0.4, ..RunSpec::at(speed) };
     spec.check(p.drive.pwm_hz, p.motor.pole_pairs).map_err(|e| ExportError::Sim(e.to_string()))?;
-    let m = run(&mut lp, &spec, p.drive.pwm_hz, |_, _| {});
+    let m = run(&mut lp, &spec, p.drive.pwm_hz, |_, _| {})
+        .map_err(|e| ExportError::Sim(format!("at {speed} rad/s: {e}")))?;
     if m.vel_err_pp_rad_s.is_finite() {
         Ok(m.vel_err_pp_rad_s)
     } else {

@@ -36,7 +36,7 @@ pub fn simulate_run(
     let pwm = motor.drive.pwm_hz;
     let nr = motor.motor.pole_pairs;
     let mut rows = Vec::with_capacity((r.duration_s * pwm) as usize + 1);
-    run(&mut lp, &spec, pwm, |k, rec| rows.push(LogRow::from_record(k, pwm, nr, rec)));
+    run(&mut lp, &spec, pwm, |k, rec| rows.push(LogRow::from_record(k, pwm, nr, rec)))?;
     Ok(rows)
 }
 

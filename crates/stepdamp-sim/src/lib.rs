@@ -14,12 +14,14 @@
 //! let motor = Profile::preset("patent-motor").unwrap();
 //! let spec = RunSpec { duration_s: 0.4, window_s: 0.2, ..RunSpec::at(8.4) };
 //! let mut lp = ClosedLoop::new(&motor, &motor, Mode::OpenLoop, Compensation::Patent, &SimOptions::default())?;
-//! let m = run(&mut lp, &spec, motor.drive.pwm_hz, |_, _| {});
+//! let m = run(&mut lp, &spec, motor.drive.pwm_hz, |_, _| {})?;
 //! assert!(!m.lost_sync);
 //! # Ok::<(), stepdamp_sim::SimError>(())
 //! ```
 
 pub mod closed_loop;
+pub mod lanes;
+pub mod lockstep;
 pub mod plant;
 /// Motor profiles: [`stepdamp_profile`], re-exported where the simulator's users found them.
 pub mod profile {
@@ -34,6 +36,7 @@ pub use closed_loop::{
     ClosedLoop, Compensation, ESTIMATED_IS_OPEN_LOOP_ONLY, PeriodRecord, SimError, SimOptions, check_mode_compensation,
     check_same_hardware, compensation_name, controller_config, controller_config_with_table, mode_name,
 };
+pub use lockstep::run_lockstep;
 pub use plant::{PlantParams, PlantState};
 pub use profile::{PRESETS, Profile, ProfileError};
 pub use scenario::{RunMetrics, RunSpec, SETTLE_S, check_speed, max_speed_rad_s, run};

@@ -11,11 +11,12 @@
 //! Coulomb friction follows Karnopp's stick/slip rule: inside a velocity band `|ω| < ω_s`
 //! the rotor sticks while the other torques stay within `Fs`, and breaks away with `Fs`
 //! opposing them otherwise; outside the band it is `−Fs·sgn(ω)`. Sticking is exact: a
-//! stuck rotor has `ω = 0` (set before and after every RK4 step, [`PlantParams::stick`]),
+//! stuck rotor has `ω = 0` (set before and after every RK4 step),
 //! not just `dω/dt = 0`, so it does not creep at its small in-band speed. The band is the
 //! speed change that `Fs` alone makes in one integration step, so the model is never
 //! stiff. Integration is classical RK4 with the voltages held over the step.
 
+use crate::lanes::{Integrator, StateLanes};
 use crate::profile::ProfileData;
 
 /// Plant parameters in SI units.
@@ -79,8 +80,9 @@ impl PlantParams {
         }
     }
 
-    /// `Σ A_k sin(k θe + φ_k)` given `(sin θe, cos θe)` (detent torque is minus this).
-    #[inline]
+    /// `Σ A_k sin(k θe + φ_k)` given `(sin θe, cos θe)` (detent torque is minus this), by
+    /// the plain recurrence over every order: the reference the integrator's chain over the
+    /// orders present ([`crate::lanes`]) is tested against.
     pub fn detent_series(&self, s1: f64, c1: f64) -> f64 {
         let (mut sk, mut ck) = (s1, c1);
         let mut sum = 0.0;
@@ -123,79 +125,19 @@ impl PlantParams {
         (-self.km * x.omega * s, self.km * x.omega * c)
     }
 
-    /// Time derivative of the state for winding voltages `(v_a, v_b)`; `stick_band` is the
-    /// Karnopp velocity band in rad/s.
-    #[inline]
-    pub fn derivative(&self, x: &PlantState, va: f64, vb: f64, stick_band: f64) -> PlantState {
-        let (s, c) = (self.nr * x.theta).sin_cos();
-        let inv_l = 1.0 / self.l;
-        let di_a = (va - self.r * x.i_a + self.km * x.omega * s) * inv_l;
-        let di_b = (vb - self.r * x.i_b - self.km * x.omega * c) * inv_l;
-        let others = self.non_friction_torque(x, s, c);
-        let tau = if x.omega.abs() >= stick_band {
-            others - self.fs.copysign(x.omega)
-        } else if others.abs() <= self.fs {
-            // Stuck: friction balances everything else.
-            0.0
-        } else {
-            others - self.fs.copysign(others)
-        };
-        PlantState { i_a: di_a, i_b: di_b, theta: x.omega, omega: tau / self.j }
-    }
-
-    /// Every torque on the rotor but Coulomb friction, given `(sin θe, cos θe)`.
-    #[inline]
-    fn non_friction_torque(&self, x: &PlantState, s: f64, c: f64) -> f64 {
-        let tau_m = self.km * (-x.i_a * s + x.i_b * c);
-        tau_m - self.detent_series(s, c) - self.d * x.omega + self.load_torque_nm
-    }
-
-    /// Karnopp's stuck state made exact: a rotor inside the stick band (`|ω| < band`)
-    /// whose other torques stay within `±Fs` is at rest, `ω = 0`. Without Coulomb friction
-    /// there is no sticking and the state is returned as it is.
-    #[inline]
-    pub fn stick(&self, x: &PlantState, band: f64) -> PlantState {
-        if self.fs > 0.0 && x.omega != 0.0 && x.omega.abs() < band {
-            let (s, c) = (self.nr * x.theta).sin_cos();
-            if self.non_friction_torque(x, s, c).abs() <= self.fs {
-                return PlantState { omega: 0.0, ..*x };
-            }
-        }
-        *x
-    }
-
     /// Karnopp band for an integration step of `h` s: the speed `Fs` alone changes in `h`.
     pub fn stick_band(&self, h: f64) -> f64 {
         (self.fs / self.j * h).max(1e-9)
     }
 
-    /// One RK4 step of `h` s with the voltages held; a stuck rotor ([`PlantParams::stick`])
-    /// is at rest before and after the step.
-    #[inline]
+    /// One RK4 step of `h` s with the voltages held; a stuck rotor (module doc) is at
+    /// rest before and after the step. A convenience for one-off steps: it prepares
+    /// a [`crate::lanes::Integrator`] on every call, which is what the closed loop keeps.
     pub fn rk4(&self, x: &PlantState, va: f64, vb: f64, h: f64, band: f64) -> PlantState {
-        let x = &self.stick(x, band);
-        let k1 = self.derivative(x, va, vb, band);
-        let k2 = self.derivative(&axpy(x, 0.5 * h, &k1), va, vb, band);
-        let k3 = self.derivative(&axpy(x, 0.5 * h, &k2), va, vb, band);
-        let k4 = self.derivative(&axpy(x, h, &k3), va, vb, band);
-        let w = h / 6.0;
-        let next = PlantState {
-            i_a: x.i_a + w * (k1.i_a + 2.0 * k2.i_a + 2.0 * k3.i_a + k4.i_a),
-            i_b: x.i_b + w * (k1.i_b + 2.0 * k2.i_b + 2.0 * k3.i_b + k4.i_b),
-            theta: x.theta + w * (k1.theta + 2.0 * k2.theta + 2.0 * k3.theta + k4.theta),
-            omega: x.omega + w * (k1.omega + 2.0 * k2.omega + 2.0 * k3.omega + k4.omega),
-        };
-        self.stick(&next, band)
-    }
-}
-
-#[inline]
-fn axpy(x: &PlantState, a: f64, k: &PlantState) -> PlantState {
-    PlantState {
-        i_a: x.i_a + a * k.i_a,
-        i_b: x.i_b + a * k.i_b,
-        theta: x.theta + a * k.theta,
-        omega: x.omega + a * k.omega,
+        let mut it = Integrator::<1>::new(self);
+        let mut lanes = StateLanes::from_states(&[*x]);
+        it.rk4(&mut lanes, &[va], &[vb], &[self.load_torque_nm], h, band);
+        lanes.lane(0)
     }
 }
 

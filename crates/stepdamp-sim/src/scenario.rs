@@ -8,10 +8,11 @@
 //! [`SETTLE_S`] after the ramp (at least one period: [`RunSpec::check`] tells whether the run
 //! is long enough for that). `lost_sync` is set when the rotor was ever more than half an
 //! electrical period (π electrical rad, two full steps) from the command after the ramp
-//! started: it has slipped past the unstable equilibrium. A run whose plant diverged
-//! (non-finite samples in the window) has NaN metrics and `lost_sync`.
+//! started: it has slipped past the unstable equilibrium. A run whose plant diverges
+//! (a non-finite sample) is stopped with [`SimError::Diverged`].
 
 use crate::closed_loop::{ClosedLoop, PeriodRecord, SimError};
+use crate::lockstep::Window;
 
 /// Largest commanded speed in rad/s a run of a motor with `pole_pairs` at `pwm_hz` accepts
 /// (either sign): the controller's own limit ([`stepdamp_core::max_speed_rad_s`]; beyond it
@@ -149,53 +150,25 @@ pub struct RunMetrics {
 }
 
 /// Runs `spec` on `lp` (fresh from [`ClosedLoop::new`]); `observe` sees every period.
+/// A run whose plant state becomes infinite or NaN is stopped there with
+/// [`SimError::Diverged`] (the diverged period is not observed).
 pub fn run(
     lp: &mut ClosedLoop,
     spec: &RunSpec,
     pwm_hz: f64,
     mut observe: impl FnMut(usize, &PeriodRecord),
-) -> RunMetrics {
-    let nr = lp.pole_pairs();
-    let (n, start) = spec.periods(pwm_hz, nr);
-    let ts = 1.0 / pwm_hz;
-    let (mut sum2, mut lo, mut hi) = (0.0, f64::INFINITY, f64::NEG_INFINITY);
-    let mut diverged = false;
-    let mut max_angle: f64 = 0.0;
-    for k in 0..n {
-        let t = k as f64 * ts;
-        let w_cmd = spec.speed_at(t);
+) -> Result<RunMetrics, SimError> {
+    let mut window = Window::new(spec, pwm_hz, lp.pole_pairs());
+    for k in 0..window.periods() {
+        let w_cmd = spec.speed_at(window.time(k));
         let rec = lp.period(w_cmd);
-        // The speed the controller was commanded (f32, within its limit by `check`).
-        let w_cmd = f64::from(lp.controller_state().speed_command_rad_s());
-        // The command the controller used this period, against the sampled rotor.
-        let theta_cmd = rec.signals.theta_cmd.mechanical_rad_f64(nr);
-        let angle = (f64::from(nr) * (theta_cmd - rec.plant.theta)).abs();
-        // A diverged (NaN) plant counts as lost sync.
-        max_angle = if angle.is_nan() { f64::INFINITY } else { max_angle.max(angle) };
-        if k >= start {
-            let e = rec.plant.omega - w_cmd;
-            diverged |= !e.is_finite();
-            sum2 += e * e;
-            lo = lo.min(e);
-            hi = hi.max(e);
-        }
+        // Measured against the speed the controller was commanded (f32, within its limit
+        // by `check`), not the f64 one asked for.
+        let w_ctl = f64::from(lp.controller_state().speed_command_rad_s());
+        window.add(k, w_ctl, &rec)?;
         observe(k, &rec);
     }
-    let m = (n - start) as f64;
-    if diverged || n == start {
-        return RunMetrics {
-            vel_err_rms_rad_s: f64::NAN,
-            vel_err_pp_rad_s: f64::NAN,
-            lost_sync: diverged || max_angle > std::f64::consts::PI,
-            max_load_angle_e_rad: max_angle,
-        };
-    }
-    RunMetrics {
-        vel_err_rms_rad_s: (sum2 / m).sqrt(),
-        vel_err_pp_rad_s: hi - lo,
-        lost_sync: max_angle > std::f64::consts::PI,
-        max_load_angle_e_rad: max_angle,
-    }
+    Ok(window.finish())
 }
 
 #[cfg(test)]
@@ -263,12 +236,27 @@ mod tests {
     }
 
     #[test]
-    fn a_diverged_run_has_nan_metrics_and_lost_sync() {
+    fn a_diverged_run_stops_with_the_time_and_the_variable() {
         let p = Profile::preset("patent-motor").unwrap();
         let mut lp = ClosedLoop::new(&p, &p, Mode::OpenLoop, Compensation::Off, &SimOptions::default()).unwrap();
-        lp.kick_rotor(f64::NAN, f64::NAN);
         let spec = RunSpec { duration_s: 0.3, window_s: 0.1, ..RunSpec::at(5.0) };
-        let m = run(&mut lp, &spec, p.drive.pwm_hz, |_, _| {});
-        assert!(m.vel_err_pp_rad_s.is_nan() && m.vel_err_rms_rad_s.is_nan() && m.lost_sync, "{m:?}");
+        let mut seen = 0;
+        // 10 periods run normally, then the rotor is kicked to a speed it cannot have.
+        for _ in 0..10 {
+            lp.period(0.0);
+        }
+        lp.kick_rotor(0.0, f64::INFINITY);
+        let e = run(&mut lp, &spec, p.drive.pwm_hz, |_, _| seen += 1).unwrap_err();
+        assert!(matches!(e, SimError::Diverged { t_s, .. } if t_s == 0.0), "{e:?}");
+        assert_eq!(e.to_string(), "the simulation diverged at t = 0 s (rotor speed ω = inf rad/s)");
+        assert_eq!(seen, 0, "the diverged period was observed");
+        // A load torque no motor could meet: it diverges once the command moves (the load
+        // opposes travel, so at rest there is none), and says when.
+        let opts = SimOptions { load_torque_nm: 1e300, ..SimOptions::default() };
+        let mut lp = ClosedLoop::new(&p, &p, Mode::OpenLoop, Compensation::Off, &opts).unwrap();
+        let e = run(&mut lp, &spec, p.drive.pwm_hz, |_, _| {}).unwrap_err();
+        let &SimError::Diverged { t_s, .. } = &e else { panic!("{e:?}") };
+        assert!(t_s > spec.dwell_s && t_s < spec.dwell_s + 0.01, "{t_s}");
+        assert!(e.to_string().starts_with("the simulation diverged at t = 0.05"), "{e}");
     }
 }

@@ -8,8 +8,10 @@
 use crate::closed_loop::{
     ClosedLoop, Compensation, SimError, SimOptions, check_mode_compensation, check_same_hardware, controller_config,
 };
+use crate::lanes::LANES;
+use crate::lockstep::run_lockstep;
 use crate::profile::Profile;
-use crate::scenario::{RunSpec, check_speed, max_speed_rad_s, run};
+use crate::scenario::{RunSpec, check_speed, max_speed_rad_s};
 use rayon::prelude::*;
 use serde::Serialize;
 use stepdamp_core::{CorrectionTable, Mode};
@@ -131,7 +133,9 @@ impl SweepSpec {
     }
 }
 
-/// Runs the sweep; `tick` is called once per finished lane (from any thread).
+/// Runs the sweep; `tick` is called once per finished lane (from any thread). Runs go
+/// [`LANES`] at a time in lock-step ([`run_lockstep`]); a run that diverges makes the
+/// sweep fail with [`SimError::Diverged`] naming it.
 /// Rows come ordered by mode, then compensation, then speed; servo lanes with
 /// estimated-angle compensation are not run ([`SweepSpec::pairs`]). The spec is checked
 /// first ([`SweepSpec::validate`], naming the profiles by their `name`).
@@ -162,26 +166,57 @@ pub fn sweep_with_table(
         }
     }
     let pwm = motor.drive.pwm_hz;
-    lanes
-        .par_iter()
+    // Groups of LANES runs go in lock-step (bit-identical to running each alone); a short
+    // last group repeats its last run to fill the lanes and drops the copies' results.
+    let groups: Vec<Result<Vec<Result<SweepRow, SimError>>, SimError>> = lanes
+        .par_chunks(LANES)
         .enumerate()
-        .map(|(i, &(mode, comp, cfg, w))| {
-            let opts = SimOptions { seed: derived_seed(spec.options.seed, i as u64), ..spec.options };
-            // `validate` accepted this set-up; an error here would still be reported, not
-            // panicked on.
-            let mut lp = ClosedLoop::with_config(motor, cfg, &opts)?;
-            let m = run(&mut lp, &RunSpec { speed_rad_s: w, ..spec.run }, pwm, |_, _| {});
-            tick();
-            Ok(SweepRow {
-                mode,
-                compensation: comp,
-                speed_cmd_rad_s: w,
-                vel_err_rms_rad_s: m.vel_err_rms_rad_s,
-                vel_err_pp_rad_s: m.vel_err_pp_rad_s,
-                lost_sync: m.lost_sync,
-            })
+        .map(|(g, chunk)| {
+            let lane = |j: usize| (g * LANES + j.min(chunk.len() - 1), chunk[j.min(chunk.len() - 1)]);
+            let mut loops = Vec::with_capacity(LANES);
+            let mut specs = Vec::with_capacity(LANES);
+            for j in 0..LANES {
+                let (i, (_, _, cfg, w)) = lane(j);
+                let opts = SimOptions { seed: derived_seed(spec.options.seed, i as u64), ..spec.options };
+                // `validate` accepted this set-up; an error here would still be reported,
+                // not panicked on.
+                loops.push(ClosedLoop::with_config(motor, cfg, &opts)?);
+                specs.push(RunSpec { speed_rad_s: w, ..spec.run });
+            }
+            let metrics = run_lockstep::<LANES>(&mut loops, &specs, pwm)?;
+            let rows = chunk
+                .iter()
+                .zip(metrics)
+                .map(|(&(mode, comp, _, w), m)| {
+                    tick();
+                    let m = m.map_err(|e| match e {
+                        SimError::Diverged { t_s, what } => SimError::Diverged {
+                            t_s,
+                            what: format!("{} {} at {w} rad/s: {what}", mode.name(), comp.name()),
+                        },
+                        e => e,
+                    })?;
+                    Ok(SweepRow {
+                        mode,
+                        compensation: comp,
+                        speed_cmd_rad_s: w,
+                        vel_err_rms_rad_s: m.vel_err_rms_rad_s,
+                        vel_err_pp_rad_s: m.vel_err_pp_rad_s,
+                        lost_sync: m.lost_sync,
+                    })
+                })
+                .collect();
+            Ok(rows)
         })
-        .collect()
+        .collect();
+    // The first error in table order, whatever thread met it first.
+    let mut rows = Vec::with_capacity(lanes.len());
+    for group in groups {
+        for row in group? {
+            rows.push(row?);
+        }
+    }
+    Ok(rows)
 }
 
 /// The controller of one lane: [`Compensation::Table`] replays `table` (an error without one).

@@ -104,7 +104,10 @@ fn halving_the_integration_step_changes_the_sweep_metric_by_under_one_percent() 
         };
         sweep(&m, &m, &spec, &|| {}).unwrap()
     };
-    let (a, b) = (at(2), at(4));
+    // The default step against half of it.
+    let m = SimOptions::default().substeps;
+    let (a, b) = (at(m), at(2 * m));
+    assert_eq!(a.len(), speeds.len() * 2);
     for (x, y) in a.iter().zip(&b) {
         let rel = (x.vel_err_pp_rad_s - y.vel_err_pp_rad_s).abs() / y.vel_err_pp_rad_s;
         assert!(
@@ -137,6 +140,61 @@ fn sweeps_are_identical_on_any_number_of_threads() {
             .install(|| sweep(&m, &m, &spec, &|| {}).unwrap())
     };
     assert_eq!(on(1), on(3));
+}
+
+#[test]
+fn runs_in_lock_step_are_bit_identical_to_runs_alone() {
+    // A sweep integrates LANES runs per SIMD lane group; each must equal its run alone,
+    // with noise, quantisation, a load (Coulomb sticking at the start), both modes and all
+    // compensations, and a short last group (15 runs is not a multiple of LANES).
+    let m = patent();
+    let spec = SweepSpec {
+        speeds_rad_s: vec![2.0, 8.4, 30.0],
+        modes: vec![Mode::OpenLoop, Mode::Servo],
+        compensations: vec![Compensation::Off, Compensation::Patent, Compensation::Estimated],
+        run: RunSpec { duration_s: 0.3, window_s: 0.1, ..RunSpec::at(1.0) },
+        options: SimOptions {
+            current_noise_a: 0.02,
+            current_lsb_a: 0.005,
+            load_torque_nm: 0.05,
+            ..SimOptions::default()
+        },
+    };
+    let rows = sweep(&m, &m, &spec, &|| {}).unwrap();
+    assert_eq!(rows.len(), 15);
+    let mut i = 0;
+    for (mode, comp) in spec.pairs() {
+        for &w in &spec.speeds_rad_s {
+            let opts = SimOptions { seed: sweep::derived_seed(spec.options.seed, i as u64), ..spec.options };
+            let mut lp = ClosedLoop::new(&m, &m, mode, comp, &opts).unwrap();
+            let alone = run(&mut lp, &RunSpec { speed_rad_s: w, ..spec.run }, m.drive.pwm_hz, |_, _| {}).unwrap();
+            let r = &rows[i];
+            assert_eq!((r.mode, r.compensation, r.speed_cmd_rad_s), (mode, comp, w));
+            // Bit for bit.
+            assert_eq!(
+                (r.vel_err_rms_rad_s.to_bits(), r.vel_err_pp_rad_s.to_bits(), r.lost_sync),
+                (alone.vel_err_rms_rad_s.to_bits(), alone.vel_err_pp_rad_s.to_bits(), alone.lost_sync),
+                "{} {} {w}",
+                r.mode,
+                r.compensation
+            );
+            i += 1;
+        }
+    }
+}
+
+#[test]
+fn a_diverging_sweep_fails_naming_the_run_and_the_time() {
+    let m = patent();
+    let spec = SweepSpec {
+        speeds_rad_s: vec![2.0, 8.4],
+        modes: vec![Mode::OpenLoop],
+        compensations: vec![Compensation::Off],
+        run: RunSpec { duration_s: 0.3, window_s: 0.1, ..RunSpec::at(1.0) },
+        options: SimOptions { load_torque_nm: 1e300, ..SimOptions::default() },
+    };
+    let e = sweep(&m, &m, &spec, &|| {}).unwrap_err().to_string();
+    assert!(e.starts_with("the simulation diverged at t = 0.05") && e.contains("(open-loop off at 2 rad/s: "), "{e}");
 }
 
 #[test]
