@@ -10,11 +10,14 @@
 //! | [`kinematics`] | speed and acceleration from a quantised encoder angle |
 //! | [`lsq`] | least squares (QR + SVD) with a block-robust covariance |
 //! | [`fit`] | the torque balance fit: harmonics, `Fs`, `D`, intervals, warnings |
+//! | [`conditions`] | what the logs can decide: slow runs short of friction, `J` fitted or held |
 //! | [`model`] | the identified model and the profile made from it |
 //! | [`plan`] | which runs to record and why; simulate them, write their logs |
 //! | [`refine`] | the patent's criterion: feed-forward on, remove the remaining ripple |
 //! | [`static_curve`] | torque-versus-angle table → FFT → harmonics |
 //! | [`spectrum`] | amplitude per harmonic order of a torque against angle (reports) |
+//! | [`stick`] | stick–slip: edge-timed angle, stuck samples with a margin |
+//! | [`validation`] | share of the periodic effort ripple explained, residual by order, verdict |
 //!
 //! Sign conventions are the profile's: the detent torque on the rotor is
 //! `−Σ A_k sin(k·Nr·θ + φ_k)`, friction `−Fs·sgn(ω) − D·ω`; phases are in `(−π, π]`.
@@ -36,6 +39,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod conditions;
 pub mod fit;
 pub mod kinematics;
 pub mod log;
@@ -45,6 +49,8 @@ pub mod plan;
 pub mod refine;
 pub mod spectrum;
 pub mod static_curve;
+pub mod stick;
+pub mod validation;
 
 #[cfg(test)]
 mod tests;

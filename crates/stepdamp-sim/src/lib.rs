@@ -20,10 +20,12 @@
 //! ```
 
 pub mod closed_loop;
+pub mod friction;
 pub mod plant;
 pub mod profile;
 pub mod runlog;
 pub mod scenario;
+pub mod sensors;
 pub mod sweep;
 
 pub use closed_loop::{
