@@ -171,7 +171,6 @@ pub fn run(m: &Motor, d: &Drive, speed_rad_s: f64, steady_s: f64, seed: u64) -> 
     out.push_str("t_s,theta_cmd_rad,theta_fb_rad,omega_fb_rad_s,i_a_a,i_b_a,i_d_a,i_q_a,iq_cmd_a\n");
     let theta0 = theta_fb_prev;
     let (mut stopped, mut steady) = (0usize, 0usize);
-    let (mut fric_sum, mut slow, mut wmax) = (0.0, 0usize, 0.0f64);
     for k in 0..n {
         let t = k as f64 * ts;
         // Reference: rest, ramp, constant speed.
@@ -209,11 +208,6 @@ pub fn run(m: &Motor, d: &Drive, speed_rad_s: f64, steady_s: f64, seed: u64) -> 
             if w.abs() < 0.05 * speed_rad_s.abs() {
                 stopped += 1;
             }
-            if w.abs() < 0.3 * speed_rad_s.abs() {
-                slow += 1;
-            }
-            fric_sum += m.friction(w) * speed_rad_s.signum();
-            wmax = wmax.max(w.abs() / speed_rad_s.abs());
         }
         // The plant over one period; the current loop acts on the command of one period ago.
         let target = iq_cmd_prev;
@@ -226,14 +220,6 @@ pub fn run(m: &Motor, d: &Drive, speed_rad_s: f64, steady_s: f64, seed: u64) -> 
             theta += h * w;
         }
         te_cmd_frame = te_fb;
-    }
-    if std::env::var("GEN_STATS").is_ok() {
-        eprintln!(
-            "gen {speed_rad_s}: mean friction / Fs {:.3}, |ω| < 30 % in {:.1} %, max |ω| {:.1}×",
-            fric_sum / steady as f64 / m.fs,
-            100.0 * slow as f64 / steady as f64,
-            wmax
-        );
     }
     (out, stopped as f64 / steady.max(1) as f64)
 }
