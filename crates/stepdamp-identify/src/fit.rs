@@ -128,6 +128,10 @@ pub const DEFAULT_ORDERS: [u16; 3] = stepdamp_profile::TYPICAL_DETENT_ORDERS;
 /// times the slower (see the module documentation, *Friction terms*).
 pub const SPEED_RATIO: f64 = 1.3;
 
+/// The fit's angle is the edge-timed one of [`crate::stick`] whenever
+/// [`FitOptions::correct_quantisation`] is set (the torque follows the true angle).
+const EDGE_TIMED_ANGLE: bool = true;
+
 /// Fewest samples of steady running a log must leave for the fit (after the speed filter's
 /// start-up at each end is dropped).
 const MIN_STEADY_SAMPLES: usize = 17;
@@ -192,6 +196,11 @@ pub struct FitOptions {
     pub max_inertial_share: f64,
     /// Warn when a term's variance inflation factor exceeds this.
     pub max_inflation: f64,
+    /// Stuck-sample detection ([`crate::stick`]).
+    pub stick: crate::stick::StickOptions,
+    /// How `J` is obtained when [`FitOptions::fit_inertia`] allows fitting it
+    /// ([`crate::conditions`]).
+    pub inertia: crate::conditions::InertiaMode,
 }
 
 impl FitOptions {
@@ -216,6 +225,8 @@ impl FitOptions {
             max_back_step_fraction: 0.02,
             max_inertial_share: 0.75,
             max_inflation: 50.0,
+            stick: crate::stick::StickOptions::default(),
+            inertia: crate::conditions::InertiaMode::Auto,
         }
     }
 }
@@ -398,6 +409,8 @@ pub enum Warning {
         /// Order.
         order: u16,
     },
+    /// A condition of the logs ([`crate::conditions`]).
+    Condition(crate::conditions::Condition),
 }
 
 impl std::fmt::Display for Warning {
@@ -487,6 +500,7 @@ impl std::fmt::Display for Warning {
             Warning::NotSignificant { order } => {
                 write!(f, "harmonic {order} is smaller than its own 95 % interval: not detected")
             }
+            Warning::Condition(c) => c.fmt(f),
         }
     }
 }
@@ -520,6 +534,8 @@ pub struct Fit {
     pub runs: Vec<RunSummary>,
     /// Warnings.
     pub warnings: Vec<Warning>,
+    /// Which `J` was used and why ([`crate::conditions`]).
+    pub decisions: Vec<crate::conditions::Decision>,
     /// The samples used, for reports: electrical angle `Nr·θ_fb` (rad, wrapped to
     /// `[0, 2π)`), the torque the model explains (`Km·i − J·α` minus friction and `c`,
     /// N·m), and the residual (N·m).
@@ -653,8 +669,15 @@ impl FitOptions {
 }
 
 /// A log with its kinematics and the window of it that is used.
+#[derive(Clone)]
 struct Prepared<'a> {
     log: &'a RunLog,
+    /// The angle the fit uses, rad: edge-timed or the logged `θ_fb` ([`crate::stick`]).
+    theta: Vec<f64>,
+    /// Samples where the rotor moves (not stuck, not within the margin of a stick).
+    keep: Vec<bool>,
+    /// Whether the drive reacts to each encoder count ([`crate::conditions::reacts_to_counts`]).
+    reacts_to_counts: bool,
     kin: Kinematics,
     /// Used window `[lo, hi)`: steady running, away from the filter's start-up.
     lo: usize,
@@ -695,7 +718,9 @@ fn prepare<'a>(log: &'a RunLog, o: &FitOptions, kmax: u16) -> Result<Prepared<'a
     }
     let ts = kinematics::median_step(&log.t_s);
     let fc = kinematics::corner_hz(w_all, o.counts_per_rev, kmax, o.pole_pairs, 1.0 / ts);
-    let kin = kinematics::estimate(&log.t_s, &log.theta_fb_rad, fc);
+    let edges = o.correct_quantisation.then(|| crate::stick::edge_timed_angle(&log.t_s, &log.theta_fb_rad));
+    let theta = edges.as_ref().map_or_else(|| log.theta_fb_rad.clone(), |e| e.theta_rad.clone());
+    let kin = kinematics::estimate(&log.t_s, &theta, fc);
     // Steady window: from the first to the last sample running at ≥ 80 % of the mean speed
     // in its direction (drops the start from rest, the ramp and a final stop).
     let running = |i: &usize| kin.omega_rad_s[*i] * w_all.signum() >= 0.8 * w_all.abs();
@@ -727,7 +752,13 @@ fn prepare<'a>(log: &'a RunLog, o: &FitOptions, kmax: u16) -> Result<Prepared<'a
             }
         }
     }
-    Ok(Prepared { log, kin, lo, hi, speed, periods, back_steps, steps })
+    let reacts_to_counts = edges.as_ref().is_some_and(|e| {
+        let mean = log.i_q_a[lo..hi].iter().sum::<f64>() / (hi - lo) as f64 * speed.signum();
+        crate::conditions::reacts_to_counts(crate::stick::count_rise(e, &log.i_q_a, lo, hi, speed.signum()), mean)
+    });
+    let keep = edges
+        .map_or_else(|| vec![true; n], |e| crate::stick::moving_mask(&e, speed, kin.corner_hz, 1.0 / ts, &o.stick));
+    Ok(Prepared { log, theta, keep, reacts_to_counts, kin, lo, hi, speed, periods, back_steps, steps })
 }
 
 /// Fits the model to the logs.
@@ -741,10 +772,58 @@ pub fn fit(logs: &[RunLog], o: &FitOptions) -> Result<Fit, FitError> {
         return Err(FitError::NoLogs);
     }
     let kmax = *o.orders.iter().max().expect("checked non-empty");
-    let prepared = logs.iter().map(|l| prepare(l, o, kmax)).collect::<Result<Vec<_>, _>>()?;
-    let first = fit_prepared(&prepared, o, o.viscous_fallback_nm_s_per_rad)?;
+    let mut prepared = logs.iter().map(|l| prepare(l, o, kmax)).collect::<Result<Vec<_>, _>>()?;
+    // Hook (crate::conditions): slow runs short of friction are left out.
+    let speeds: Vec<f64> = prepared.iter().map(|p| p.speed).collect();
+    let held = FitOptions { fit_inertia: false, ..o.clone() };
+    let reacts: Vec<bool> = prepared.iter().map(|p| p.reacts_to_counts).collect();
+    let left_out = crate::conditions::slow_levels_to_leave_out(&speeds, &reacts, |runs| {
+        let sub: Vec<Prepared> = runs.iter().map(|&i| prepared[i].clone()).collect();
+        fit_prepared(&sub, &held, o.viscous_fallback_nm_s_per_rad).ok().map(|f| f.coulomb_friction_nm.value)
+    });
+    let condition = left_out.map(|l| {
+        let runs = l.runs.iter().map(|&i| prepared[i].log.source.clone()).collect();
+        let mut i = 0;
+        prepared.retain(|_| (!l.runs.contains(&i), i += 1).0);
+        let viscous_held = o.viscous_fallback_nm_s_per_rad;
+        let (fs_slow_nm, fs_fast_nm, slow_rad_s, fast_rad_s) = (l.fs_slow_nm, l.fs_fast_nm, l.slow_rad_s, l.fast_rad_s);
+        Warning::Condition(crate::conditions::Condition::SlowRunsLeftOut {
+            runs,
+            fs_slow_nm,
+            fs_fast_nm,
+            slow_rad_s,
+            fast_rad_s,
+            viscous_held,
+        })
+    });
+    // Hook (crate::conditions): fit J or hold the base's, and say which.
+    let speeds: Vec<f64> = prepared.iter().map(|p| p.speed).collect();
+    let choice = crate::conditions::inertia_choice(o.fit_inertia, o.inertia, &speeds);
+    let mut f = two_passes(&prepared, &FitOptions { fit_inertia: choice.is_ok(), ..o.clone() })?;
+    let decision = match (choice, f.inertia_kg_m2) {
+        (Ok(forced), Some(j)) if forced || j.ci95 <= crate::conditions::MAX_INERTIA_INTERVAL * j.value => {
+            crate::conditions::Decision::InertiaFitted { value: j.value, ci95: j.ci95, forced }
+        }
+        (Ok(_), Some(j)) => {
+            f = two_passes(&prepared, &held)?;
+            let reason =
+                format!("its interval ±{:.0} % is wide (the fit gave {:.4e} kg·m²)", 100.0 * j.ci95 / j.value, j.value);
+            crate::conditions::Decision::InertiaHeld { base: o.inertia_kg_m2, reason }
+        }
+        (Err(reason), _) => crate::conditions::Decision::InertiaHeld { base: o.inertia_kg_m2, reason },
+        (Ok(_), None) => {
+            crate::conditions::Decision::InertiaHeld { base: o.inertia_kg_m2, reason: "not fitted".into() }
+        }
+    };
+    f.warnings.splice(0..0, condition);
+    f.decisions.push(decision);
+    Ok(f)
+}
+
+fn two_passes(prepared: &[Prepared], o: &FitOptions) -> Result<Fit, FitError> {
+    let first = fit_prepared(prepared, o, o.viscous_fallback_nm_s_per_rad)?;
     match first.viscous_nm_s_per_rad {
-        Some(d) => fit_prepared(&prepared, o, d.value.max(0.0)),
+        Some(d) => fit_prepared(prepared, o, d.value.max(0.0)),
         None => Ok(first),
     }
 }
@@ -840,11 +919,11 @@ fn fit_prepared(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Result<
         #[allow(clippy::needless_range_loop)] // five parallel arrays are read at i
         for i in prep.lo..prep.hi {
             let w = kin.omega_rad_s[i];
-            if w * wbar.signum() < vmin {
+            if w * wbar.signum() < vmin || !prep.keep[i] {
                 stalled += 1;
                 continue;
             }
-            let th = log.theta_fb_rad[i];
+            let th = prep.theta[i];
             let te = nr * th;
             let (s1, c1) = te.sin_cos();
             for (j, &k) in o.orders.iter().enumerate() {
@@ -932,7 +1011,9 @@ fn fit_prepared(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Result<
 
     // Quantisation correction of the harmonic regressors.
     let gain = |k: u16| match o.counts_per_rev {
-        Some(cpr) if o.correct_quantisation => sinc(f64::from(k) * PI * nr / f64::from(cpr)),
+        // The edge-timed angle (used whenever the correction is asked for) is not averaged
+        // over a count: no correction needed.
+        Some(cpr) if o.correct_quantisation && !EDGE_TIMED_ANGLE => sinc(f64::from(k) * PI * nr / f64::from(cpr)),
         _ => 1.0,
     };
     let mut harmonics = Vec::with_capacity(nh);
@@ -1038,6 +1119,7 @@ fn fit_prepared(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Result<
         condition: sol.condition,
         runs,
         warnings,
+        decisions: Vec::new(),
         samples: FitSamples { theta_e_rad: theta_e_used, ripple_nm: ripple, residual_nm: sol.residual },
     })
 }
@@ -1067,8 +1149,8 @@ fn periodic_part(prep: &Prepared, orders: &[u16], nr: f64) -> Option<Periodic> {
     let mut ata = nalgebra::DMatrix::<f64>::zeros(m, m);
     let mut atb = nalgebra::DVector::<f64>::zeros(m);
     let mut row = vec![0.0; m];
-    for i in prep.lo..prep.hi {
-        let te = nr * prep.log.theta_fb_rad[i];
+    for i in (prep.lo..prep.hi).filter(|&i| prep.keep[i]) {
+        let te = nr * prep.theta[i];
         for (j, &k) in orders.iter().enumerate() {
             let (s, c) = (f64::from(k) * te).sin_cos();
             row[2 * j] = s;

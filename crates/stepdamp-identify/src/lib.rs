@@ -10,12 +10,15 @@
 //! | [`kinematics`] | speed and acceleration from a quantised encoder angle |
 //! | [`lsq`] | least squares (QR + SVD) with a block-robust covariance |
 //! | [`fit`] | the torque balance fit: harmonics, `Fs`, `D`, intervals, warnings |
+//! | [`conditions`] | what the logs can decide: slow runs short of friction, `J` fitted or held |
 //! | [`model`] | the identified model and the profile made from it |
 //! | [`plan`] | which runs to record and why |
 //! | `simulate` | simulate the plan's runs, write their logs (feature `simulate`) |
 //! | `refine` | the patent's criterion: feed-forward on, remove the remaining ripple (feature `simulate`) |
 //! | [`static_curve`] | torque-versus-angle table → FFT → harmonics |
 //! | [`spectrum`] | amplitude per harmonic order of a torque against angle (reports) |
+//! | [`stick`] | stick–slip: edge-timed angle, stuck samples with a margin |
+//! | [`validation`] | share of the periodic effort ripple explained, residual by order, verdict |
 //!
 //! Reading logs and fitting need only `stepdamp-profile`; what simulates (the `simulate`
 //! and `refine` modules) needs the default feature `simulate` (the simulator and rayon).
@@ -42,6 +45,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod conditions;
 pub mod fit;
 pub mod kinematics;
 pub mod log;
@@ -54,6 +58,8 @@ pub mod refine;
 pub mod simulate;
 pub mod spectrum;
 pub mod static_curve;
+pub mod stick;
+pub mod validation;
 
 #[cfg(all(test, feature = "simulate"))]
 mod tests;

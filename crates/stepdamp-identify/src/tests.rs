@@ -570,3 +570,44 @@ fn currents_out_of_range_are_an_error_naming_the_logs_not_a_profile_with_infinit
     let text = fit(&logs, &o).unwrap_err().to_string();
     assert!(text.contains("not a number in synthetic -1"), "{text}");
 }
+
+#[test]
+fn a_single_log_fits_what_it_determines_and_holds_j_and_d_at_the_base_saying_which() {
+    // Issue 12 item 5: one run used to fail with "regressors are linearly dependent" (J's
+    // instrument is a combination of the harmonic regressors within one log).
+    let m = patent();
+    let o = PlanOptions { electrical_periods: 15.0, min_steady_s: 1.0, ..PlanOptions::default() };
+    let mut p = plan(&user_base(), &o).unwrap();
+    p.runs.truncate(1);
+    let logs = simulate_plan(&m, &p.profile, Compensation::Off, &p, o.current_noise_a, 5, &|| {}).unwrap();
+    assert_eq!(logs.len(), 1);
+    let f = fit(&logs, &FitOptions::for_profile(&p.profile, &[1, 2, 4])).unwrap();
+    assert!(f.inertia_kg_m2.is_none() && f.inertia_used == p.profile.motor.inertia_kg_m2);
+    let said: Vec<String> = f.decisions.iter().map(ToString::to_string).collect();
+    assert!(said.iter().any(|d| d.starts_with("J held at the base profile's") && d.contains("one log")), "{said:?}");
+    assert!(f.viscous_nm_s_per_rad.is_none() && f.warnings.iter().any(|w| matches!(w, Warning::SingleSpeed { .. })));
+    // The harmonics are still determined (J is right here): within the usual tolerance.
+    let e = errors(&m, &Model::from_fit(&f));
+    assert!(
+        e.amplitude_over_tolerance <= 1.0 && e.phase_rad <= 0.05,
+        "{:.3} {:.4}",
+        e.amplitude_over_tolerance,
+        e.phase_rad
+    );
+}
+
+#[test]
+fn inertia_mode_fit_on_a_single_log_still_reports_the_dependence() {
+    let m = patent();
+    let o = PlanOptions { electrical_periods: 15.0, min_steady_s: 1.0, ..PlanOptions::default() };
+    let mut p = plan(&user_base(), &o).unwrap();
+    p.runs.truncate(1);
+    let logs = simulate_plan(&m, &p.profile, Compensation::Off, &p, o.current_noise_a, 5, &|| {}).unwrap();
+    let mut fo = FitOptions::for_profile(&p.profile, &[1, 2, 4]);
+    fo.inertia = crate::conditions::InertiaMode::Fit;
+    let e = fit(&logs, &fo).unwrap_err().to_string();
+    assert!(e.contains("linearly dependent"), "{e}");
+    fo.inertia = crate::conditions::InertiaMode::Base;
+    let f = fit(&logs, &fo).unwrap();
+    assert!(f.decisions.iter().any(|d| d.to_string().contains("--inertia base")));
+}

@@ -20,6 +20,7 @@
 //! ```
 
 pub mod closed_loop;
+pub mod friction;
 pub mod lanes;
 pub mod lockstep;
 pub mod plant;
@@ -29,6 +30,7 @@ pub mod profile {
 }
 pub mod runlog;
 pub mod scenario;
+pub mod sensors;
 pub mod summary;
 pub mod sweep;
 

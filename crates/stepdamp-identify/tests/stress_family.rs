@@ -1,0 +1,117 @@
+//! Issue 11's stress family: identification on logs this repository did not write.
+//!
+//! 50 seeded random motors simulated by the independent generator of `independent/` (half
+//! with smooth-creep friction, half Stribeck; a drive tuned by its own rule at 40–80 Hz;
+//! ±0.5 and ±1 rad/s; 4000-count encoder; current noise), written as CSV run logs, read
+//! with [`parse_log`] and fitted from a base profile that carries the true `J` and no detent.
+//! Done when every harmonic of 5 mN·m or more is within max(5 %, 0.5 mN·m) in amplitude and
+//! 0.05 rad in phase, and `Fs` within 10 %, for every motor.
+
+mod independent;
+
+use independent::{Friction, run, stress_motor};
+use rayon::prelude::*;
+use stepdamp_identify::fit::{FitOptions, fit, wrap_pi};
+use stepdamp_identify::log::{LogOptions, RunLog, parse_log};
+use stepdamp_identify::validation::{default_max_order, validate};
+use stepdamp_profile::Profile;
+
+/// The four runs of each motor: speed (rad/s) and steady duration (s): about 12 electrical
+/// periods at 0.5 rad/s, 16 at 1 rad/s.
+const RUNS: [(f64, f64); 4] = [(0.5, 3.0), (-0.5, 3.0), (1.0, 2.0), (-1.0, 2.0)];
+
+struct Outcome {
+    seed: u64,
+    stribeck: bool,
+    amplitude_over_tolerance: f64,
+    phase_rad: f64,
+    coulomb_relative: f64,
+    stopped: f64,
+    summary: String,
+}
+
+fn identify(seed: u64) -> Outcome {
+    let (m, d) = stress_motor(seed);
+    let mut stopped = 0.0f64;
+    let logs: Vec<RunLog> = RUNS
+        .iter()
+        .enumerate()
+        .map(|(i, &(speed, steady))| {
+            let (csv, s) = run(&m, &d, speed, steady, 1000 * seed + i as u64);
+            stopped = stopped.max(s);
+            parse_log(csv.as_bytes(), &format!("motor{seed}-run{i}"), &LogOptions::new(m.nr)).unwrap()
+        })
+        .collect();
+    // What the user has: the preset with the true J, no detent, its own Fs and servo.
+    let base = Profile::preset("patent-motor")
+        .unwrap()
+        .edited("stress base", |d| {
+            d.motor.detent.clear();
+            d.motor.inertia_kg_m2 = m.j;
+        })
+        .unwrap();
+    let f = fit(&logs, &FitOptions::for_profile(&base, &[1, 2, 4])).unwrap();
+    let (mut over, mut phase) = (0.0f64, 0.0f64);
+    for &(k, a, p) in m.detent.iter().filter(|t| t.1 >= 0.005) {
+        let h = f.harmonics.iter().find(|h| h.order == k).unwrap();
+        over = over.max((h.amplitude_nm.value - a).abs() / (0.05 * a).max(0.0005));
+        phase = phase.max(wrap_pi(h.phase_rad.value - p).abs());
+    }
+    let coulomb_relative = (f.coulomb_friction_nm.value / m.fs - 1.0).abs();
+    let summary = format!(
+        "{}; {}; J fitted {:?} used {:.3} of true; D {:?}; warnings: {}",
+        validate(&f, default_max_order(&f)).overall,
+        f.decisions.iter().map(|d| d.to_string()).collect::<Vec<_>>().join(" | "),
+        f.inertia_kg_m2.map(|j| j.value / m.j),
+        f.inertia_used / m.j,
+        f.viscous_nm_s_per_rad.map(|v| v.value),
+        f.warnings.iter().map(|w| w.to_string()).collect::<Vec<_>>().join(" | ")
+    );
+    Outcome {
+        seed,
+        stribeck: matches!(m.friction, Friction::Stribeck { .. }),
+        amplitude_over_tolerance: over,
+        phase_rad: phase,
+        coulomb_relative,
+        stopped,
+        summary,
+    }
+}
+
+#[test]
+fn fifty_independent_stick_slip_motors_are_identified_within_tolerance() {
+    let n = 50u64;
+    let out: Vec<Outcome> = (0..n).into_par_iter().map(identify).collect();
+    for o in &out {
+        eprintln!(
+            "motor {:2} ({}): amplitude {:.2} of tolerance, phase {:.4} rad, Fs {:.1} %, stopped ≤ {:.0} % — {}",
+            o.seed,
+            if o.stribeck { "Stribeck" } else { "creep" },
+            o.amplitude_over_tolerance,
+            o.phase_rad,
+            100.0 * o.coulomb_relative,
+            100.0 * o.stopped,
+            o.summary
+        );
+    }
+    let worst = |g: fn(&Outcome) -> f64| {
+        out.iter().map(|o| (g(o), o.seed)).fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a })
+    };
+    let (a, sa) = worst(|o| o.amplitude_over_tolerance);
+    let (p, sp) = worst(|o| o.phase_rad);
+    let (c, sc) = worst(|o| o.coulomb_relative);
+    eprintln!(
+        "stress family ({n} motors): worst amplitude {a:.2} of tolerance (motor {sa}), phase {p:.4} rad (motor {sp}), Fs {:.1} % (motor {sc})",
+        100.0 * c
+    );
+    for o in &out {
+        assert!(
+            o.amplitude_over_tolerance <= 1.0,
+            "motor {}: amplitude {:.2} of tolerance",
+            o.seed,
+            o.amplitude_over_tolerance
+        );
+        assert!(o.phase_rad <= 0.05, "motor {}: phase error {:.4} rad", o.seed, o.phase_rad);
+        assert!(o.coulomb_relative <= 0.10, "motor {}: Fs error {:.1} %", o.seed, 100.0 * o.coulomb_relative);
+    }
+}

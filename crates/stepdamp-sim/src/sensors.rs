@@ -1,0 +1,149 @@
+//! Sensor imperfections of a real drive (issue 11, item 1), as pure functions: per-phase
+//! current-sensor offset and gain mismatch, and encoder eccentricity.
+//!
+//! * **Current sensors**: the drive reads `i_meas = g·i + o` per phase, with gain `g = 1 + ε`
+//!   (`ε` the gain mismatch, dimensionless) and offset `o` (A). In the rotor's frame an
+//!   offset is a current vector fixed in the stator: a ripple at the electrical frequency
+//!   (order 1) of amplitude `|o|` in `i_q`; a gain mismatch `ε_a ≠ ε_b` a ripple at twice it
+//!   (order 2) of amplitude `|ε_a − ε_b|·|i|/2` — so both show up as detent-like orders 1
+//!   and 2 in an identification ([`CurrentSensors::q_error_a`] gives the exact error).
+//! * **Encoder eccentricity**: a code disc mounted off-centre reads
+//!   `θ_read = θ + e·sin(θ + φ_e)` — a once-per-revolution angle error of amplitude `e` (rad),
+//!   before quantisation.
+//!
+//! Proposed profile keys (defaults = today's ideal sensors):
+//!
+//! | key | unit | range | default |
+//! |---|---|---|---|
+//! | `drive.current_offset_a = [o_a, o_b]` | A | each `|o| ≤` 10 % of `current_limit_a` | `[0, 0]` |
+//! | `drive.current_gain_error = [ε_a, ε_b]` | 1 | each in `[−0.2, 0.2]` | `[0, 0]` |
+//! | `encoder.eccentricity_rad` | rad | `[0, 0.01]` (≈ 16 counts of 4000) | `0` |
+//! | `encoder.eccentricity_phase_rad` | rad | `(−π, π]` | `0` |
+
+/// Per-phase current-sensor errors.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CurrentSensors {
+    /// Offsets of phases A and B, A.
+    pub offset_a: [f64; 2],
+    /// Gain errors `ε` of phases A and B (the gain is `1 + ε`).
+    pub gain_error: [f64; 2],
+}
+
+impl CurrentSensors {
+    /// What the drive reads for true phase currents `(i_a, i_b)`, A.
+    pub fn read(&self, i_a: f64, i_b: f64) -> (f64, f64) {
+        ((1.0 + self.gain_error[0]) * i_a + self.offset_a[0], (1.0 + self.gain_error[1]) * i_b + self.offset_a[1])
+    }
+
+    /// Error of the measured `i_q` (read minus true) at electrical angle `theta_e` for true
+    /// phase currents `(i_a, i_b)`, with the Park convention of the log format
+    /// `i_q = −i_a sin θe + i_b cos θe`, A.
+    pub fn q_error_a(&self, i_a: f64, i_b: f64, theta_e: f64) -> f64 {
+        let (ra, rb) = self.read(i_a, i_b);
+        let (s, c) = theta_e.sin_cos();
+        (-(ra - i_a)) * s + (rb - i_b) * c
+    }
+
+    /// Checks the proposed ranges; `limit_a` is the drive's current limit. Returns the key
+    /// and the reason of the first value out of range.
+    pub fn validate(&self, limit_a: f64) -> Result<(), (&'static str, &'static str)> {
+        if !self.offset_a.iter().all(|o| o.is_finite() && o.abs() <= 0.1 * limit_a) {
+            return Err(("drive.current_offset_a", "each offset must be finite and at most 10 % of current_limit_a"));
+        }
+        if !self.gain_error.iter().all(|g| g.is_finite() && g.abs() <= 0.2) {
+            return Err(("drive.current_gain_error", "each gain error must be finite and in [−0.2, 0.2]"));
+        }
+        Ok(())
+    }
+}
+
+/// A once-per-revolution encoder angle error.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Eccentricity {
+    /// Amplitude `e`, rad (mechanical).
+    pub amplitude_rad: f64,
+    /// Phase `φ_e`, rad.
+    pub phase_rad: f64,
+}
+
+impl Eccentricity {
+    /// The angle the encoder reads (before quantisation) at mechanical angle `theta`, rad.
+    pub fn read(&self, theta: f64) -> f64 {
+        theta + self.amplitude_rad * (theta + self.phase_rad).sin()
+    }
+
+    /// Checks the proposed range `[0, 0.01]` rad and a finite phase.
+    pub fn validate(&self) -> Result<(), (&'static str, &'static str)> {
+        if !(self.amplitude_rad.is_finite() && (0.0..=0.01).contains(&self.amplitude_rad)) {
+            return Err(("encoder.eccentricity_rad", "must be in [0, 0.01] rad"));
+        }
+        if !self.phase_rad.is_finite() {
+            return Err(("encoder.eccentricity_phase_rad", "must be finite"));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::{PI, TAU};
+
+    /// Amplitude of the component of `f(θe)` at `order`, by a 720-point Fourier sum.
+    fn harmonic(f: impl Fn(f64) -> f64, order: f64) -> f64 {
+        let n = 720;
+        let (mut s, mut c) = (0.0, 0.0);
+        for i in 0..n {
+            let x = TAU * f64::from(i) / f64::from(n);
+            s += f(x) * (order * x).sin();
+            c += f(x) * (order * x).cos();
+        }
+        2.0 * s.hypot(c) / f64::from(n)
+    }
+
+    #[test]
+    fn ideal_sensors_read_the_truth() {
+        assert_eq!(CurrentSensors::default().read(1.2, -0.7), (1.2, -0.7));
+        assert_eq!(Eccentricity::default().read(0.3), 0.3);
+    }
+
+    #[test]
+    fn a_current_offset_is_a_first_order_ripple_of_its_size_in_iq() {
+        let s = CurrentSensors { offset_a: [0.02, 0.0], gain_error: [0.0; 2] };
+        // Currents in the q axis of the true angle: i_a = −I sin θe, i_b = I cos θe.
+        let iq = 1.5;
+        let err = |te: f64| s.q_error_a(-iq * te.sin(), iq * te.cos(), te);
+        assert!((harmonic(err, 1.0) - 0.02).abs() < 1e-9);
+        assert!(harmonic(err, 2.0) < 1e-9);
+    }
+
+    #[test]
+    fn a_gain_mismatch_is_a_second_order_ripple_of_half_the_mismatch_in_iq() {
+        let s = CurrentSensors { offset_a: [0.0; 2], gain_error: [0.03, -0.01] };
+        let iq = 2.0;
+        let err = |te: f64| s.q_error_a(-iq * te.sin(), iq * te.cos(), te);
+        assert!((harmonic(err, 2.0) - 0.5 * 0.04 * iq).abs() < 1e-9, "{}", harmonic(err, 2.0));
+        assert!(harmonic(err, 1.0) < 1e-9);
+    }
+
+    #[test]
+    fn eccentricity_is_a_once_per_revolution_error_of_its_amplitude() {
+        let e = Eccentricity { amplitude_rad: 1e-3, phase_rad: PI / 3.0 };
+        let err = |th: f64| e.read(th) - th;
+        assert!((harmonic(err, 1.0) - 1e-3).abs() < 1e-12);
+        assert!(harmonic(err, 2.0) < 1e-12);
+        assert!(e.validate().is_ok());
+        assert_eq!(
+            Eccentricity { amplitude_rad: 0.02, phase_rad: 0.0 }.validate().unwrap_err().0,
+            "encoder.eccentricity_rad"
+        );
+    }
+
+    #[test]
+    fn out_of_range_sensor_errors_name_their_key() {
+        let s = CurrentSensors { offset_a: [0.5, 0.0], gain_error: [0.0; 2] };
+        assert_eq!(s.validate(3.0).unwrap_err().0, "drive.current_offset_a");
+        let s = CurrentSensors { offset_a: [0.0; 2], gain_error: [0.0, f64::NAN] };
+        assert_eq!(s.validate(3.0).unwrap_err().0, "drive.current_gain_error");
+    }
+}
