@@ -46,7 +46,7 @@ pub fn destination(path: &Path) -> Result<Destination, OutError> {
             Ok(Destination::Staged { final_path })
         }
         Ok(_) => Ok(Destination::Direct),
-        Err(e) if e.kind() == io::ErrorKind::NotFound => {
+        Err(e) if matches!(e.kind(), io::ErrorKind::NotFound | io::ErrorKind::NotADirectory) => {
             let final_path = follow_dangling(path)?;
             let dir = parent_dir(&final_path);
             if !dir.is_dir() {

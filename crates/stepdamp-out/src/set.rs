@@ -11,7 +11,8 @@ use std::path::{Path, PathBuf};
 /// temporaries are removed, and so is the output directory when this set created it.
 #[derive(Debug)]
 pub struct OutputSet {
-    staged: Vec<(PathBuf, PathBuf, Token)>,
+    /// (temporary, target, path as given, registration)
+    staged: Vec<(PathBuf, PathBuf, PathBuf, Token)>,
     /// The topmost directory this set created, removed with its contents unless committed.
     created: Option<(PathBuf, Token)>,
 }
@@ -47,28 +48,32 @@ impl OutputSet {
         };
         let (file, tmp, token) = create_temp(&target)?;
         drop(file);
-        self.staged.push((tmp.clone(), target, token));
+        self.staged.push((tmp.clone(), target, final_path.to_path_buf(), token));
         Ok(tmp)
     }
 
-    /// Moves every staged file into place, all under the clean-up lock. If a move fails,
-    /// the files already moved stay (complete) and the rest are removed.
+    /// Moves every staged file into place, all under the clean-up lock, and returns their
+    /// paths as given to [`OutputSet::stage`]. If a move fails, the files already moved
+    /// stay (complete) and the rest are removed.
     pub fn commit(mut self) -> Result<Vec<PathBuf>, OutError> {
         let mut reg = registry();
         if let Some((_, t)) = self.created.take() {
             reg.forget(t);
         }
         let mut done = Vec::new();
-        for (tmp, fin, token) in std::mem::take(&mut self.staged) {
+        let mut staged = std::mem::take(&mut self.staged).into_iter();
+        while let Some((tmp, fin, given, token)) = staged.next() {
             if let Err(e) = std::fs::rename(&tmp, &fin) {
                 let _ = std::fs::remove_file(&tmp);
                 reg.forget(token);
-                // The rest are removed by `Drop` (after the lock is released).
-                drop(reg);
-                return Err(OutError::io(&fin, e));
+                for (tmp, _, _, token) in staged {
+                    let _ = std::fs::remove_file(&tmp);
+                    reg.forget(token);
+                }
+                return Err(OutError::io(&given, e));
             }
             reg.forget(token);
-            done.push(fin);
+            done.push(given);
         }
         Ok(done)
     }
@@ -77,7 +82,7 @@ impl OutputSet {
 impl Drop for OutputSet {
     fn drop(&mut self) {
         let mut reg = registry();
-        for (tmp, _, token) in self.staged.drain(..) {
+        for (tmp, _, _, token) in self.staged.drain(..) {
             let _ = std::fs::remove_file(&tmp);
             reg.forget(token);
         }

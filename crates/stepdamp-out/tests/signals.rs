@@ -250,3 +250,21 @@ fn a_failed_command_leaves_no_directory_it_created_and_no_temporaries() {
     }
     assert!(tree(dir.path()).is_empty(), "{:?}", tree(dir.path()));
 }
+
+#[test]
+fn a_move_that_fails_midway_removes_the_temporaries_not_yet_moved() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut set = OutputSet::in_existing_dir(dir.path()).unwrap();
+    for name in ["a.csv", "b.csv", "c.csv"] {
+        let tmp = set.stage(&dir.path().join(name)).unwrap();
+        std::fs::write(tmp, name).unwrap();
+    }
+    // b.csv becomes a non-empty directory after staging: its move fails.
+    std::fs::create_dir(dir.path().join("b.csv")).unwrap();
+    std::fs::write(dir.path().join("b.csv/keep"), "").unwrap();
+    let e = set.commit().unwrap_err().to_string();
+    assert!(e.contains("b.csv") && e.contains("cannot write"), "{e}");
+    no_temporaries(dir.path(), "failed move");
+    assert!(!dir.path().join("c.csv").exists());
+    assert_eq!(std::fs::read_to_string(dir.path().join("a.csv")).unwrap(), "a.csv");
+}
