@@ -49,6 +49,11 @@ pub const KNOWN_COLUMNS: [&str; 9] =
 /// bound keeps one line's buffer small whatever the input.
 pub const MAX_LINE_BYTES: usize = 64 * 1024;
 
+/// Largest `|θ_fb|` accepted, rad (160 million revolutions: days of logging at 1000 rad/s).
+/// Beyond it `sin(k·Nr·θ)` loses its meaning in `f64` (the spacing of `f64` near
+/// `Nr·θ = 5·10¹⁰` is 8·10⁻⁶ rad, and grows with θ) and the Park transform overflows to NaN.
+pub const MAX_ANGLE_RAD: f64 = 1e9;
+
 /// Most columns a header may have (the §6 log has 9; tools add a few dozen at most).
 pub const MAX_COLUMNS: usize = 1024;
 
@@ -157,6 +162,18 @@ pub enum LogError {
         column: String,
         /// The text found.
         value: String,
+    },
+    /// An angle beyond [`MAX_ANGLE_RAD`].
+    #[error("{path}: line {line}, column 'theta_fb_rad': {value} rad is beyond ±{max:e} rad (is it in radians?)")]
+    AngleOutOfRange {
+        /// The file.
+        path: String,
+        /// Line number.
+        line: u64,
+        /// The angle.
+        value: f64,
+        /// The limit.
+        max: f64,
     },
     /// A row has more or fewer fields than the header.
     #[error("{path}: line {line}: {found} fields, the header has {expected}")]
@@ -421,6 +438,10 @@ pub fn parse_log<R: Read>(reader: R, source: &str, opts: &LogOptions) -> Result<
             };
             target.push(v);
         }
+        let thn = *th.last().expect("theta_fb_rad is a column");
+        if thn.abs() > MAX_ANGLE_RAD {
+            return Err(LogError::AngleOutOfRange { path, line, value: thn, max: MAX_ANGLE_RAD });
+        }
         let tn = *t.last().expect("t_s is a column");
         if tn <= prev_t {
             return Err(LogError::NonMonotonicTime { path, line, t: tn, prev: prev_t });
@@ -652,5 +673,13 @@ mod tests {
     fn a_header_quoted_by_a_spreadsheet_is_read() {
         let text = format!("\u{feff}\"t_s\",\"theta_fb_rad\",\"i_q_a\"\n{}", body(6000));
         assert_eq!(parse(&text).unwrap().len(), 6000);
+    }
+
+    #[test]
+    fn a_huge_angle_is_refused_instead_of_turning_the_torque_current_into_nan() {
+        // Found by fuzzing: θ = 1.5e307 made Nr·θ overflow, sin(inf) = NaN, and i_q NaN.
+        let text = "t_s,theta_fb_rad,i_a_a,i_b_a\n0,0,0.5,-0.5\n0.001,0.150000000000000021e308,0.5,-0.5\n";
+        let e = parse(text).unwrap_err().to_string();
+        assert!(e.contains("run.csv: line 3, column 'theta_fb_rad'") && e.contains("1e9"), "{e}");
     }
 }
