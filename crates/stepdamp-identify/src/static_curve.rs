@@ -39,6 +39,11 @@ use stepdamp_out::input::printable;
 /// Most electrical periods a table may span (a million points at 100 per period).
 pub const MAX_PERIODS: f64 = 10_000.0;
 
+/// Largest `|torque|` a table may hold, N·m: far above any stepper's (the largest hybrid
+/// steppers hold about 50 N·m), and small enough that the FFT of a million points stays
+/// finite (a value near `f64::MAX` made the harmonics infinite).
+pub const MAX_TORQUE_NM: f64 = 1e6;
+
 /// Which torque the table holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum TorqueSign {
@@ -240,6 +245,14 @@ pub fn analyse(
     }
     if pole_pairs == 0 || max_order == 0 {
         return Err(span_err("pole pairs and the highest order must be ≥ 1".into()));
+    }
+    if let Some((i, &(th, tq))) =
+        points.iter().enumerate().find(|(_, p)| !(p.0.is_finite() && p.1.abs() <= MAX_TORQUE_NM))
+    {
+        return Err(span_err(format!(
+            "point {} (θ = {th} rad): torque {tq} N·m is not a finite value within ±{MAX_TORQUE_NM:e} N·m (is it in N·m?)",
+            i + 1
+        )));
     }
     for w in points.windows(2) {
         if w[1].0.partial_cmp(&w[0].0) != Some(std::cmp::Ordering::Greater) {
@@ -491,5 +504,14 @@ mod tests {
         let wide: Vec<String> = (0..5000).map(|i| format!("c{i}")).collect();
         let e = parse_table(format!("{}\n", wide.join(",")).as_bytes(), "t.csv").unwrap_err().to_string();
         assert!(e.contains("t.csv: line 1") && e.contains("5000 columns"), "{e}");
+    }
+
+    #[test]
+    fn a_torque_beyond_any_motor_is_refused_instead_of_giving_infinite_harmonics() {
+        // Found by fuzzing: one point of 1e308 N·m made the FFT's amplitudes infinite.
+        let mut pts = table(64, 1.0, 1.0, false, false);
+        pts[0].1 = 1e308;
+        let e = analyse(&pts, 50, TorqueSign::OnRotor, 4, "t.csv").unwrap_err().to_string();
+        assert!(e.contains("t.csv") && e.contains("point 1") && e.contains("1e6 N·m"), "{e}");
     }
 }
