@@ -1,7 +1,7 @@
 //! Shared command-line pieces: motor loading, lists of modes and compensations, atomic
 //! output, progress bars.
 
-use anyhow::{Context, Result, anyhow, bail};
+use anyhow::{Context, Result, anyhow};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
@@ -112,108 +112,46 @@ pub fn write_out(mut w: impl Write, args: std::fmt::Arguments<'_>) -> Result<()>
     }
 }
 
-/// Whether an error is (caused by) the reader closing standard output.
-pub fn is_stdout_closed(e: &anyhow::Error) -> bool {
-    e.chain().any(|c| c.is::<StdoutClosed>())
-}
-
 /// Files written side by side and moved into place only when all are complete, so an
-/// error leaves nothing half-written.
-pub struct AtomicFiles {
-    staged: Vec<(PathBuf, PathBuf)>,
-    /// Directories to remove (if empty) when dropped without commit, deepest first.
-    created: Vec<PathBuf>,
-}
+/// error or an interruption (SIGINT/SIGTERM) leaves nothing half-written (see
+/// [`stepdamp_out::OutputSet`]).
+pub struct AtomicFiles(stepdamp_out::OutputSet);
 
 impl AtomicFiles {
-    /// Creates `dir` (and parents) and checks it is writable. The directory stays.
+    /// Creates `dir` (and parents) and checks it is writable. A directory created here is
+    /// removed again if the files are not committed (an error or an interruption).
     pub fn in_dir(dir: &Path) -> Result<Self> {
-        let mut files = Self::in_dir_removed_on_failure(dir)?;
-        files.created.clear();
-        Ok(files)
+        Ok(AtomicFiles(stepdamp_out::OutputSet::in_dir(dir)?))
     }
 
-    /// Like [`AtomicFiles::in_dir`], but the directories it had to create are removed
-    /// again (if still empty) when it is dropped without [`AtomicFiles::commit`]: a failed
-    /// command leaves no new directory behind.
+    /// The same as [`AtomicFiles::in_dir`] (kept for its callers' clarity).
     pub fn in_dir_removed_on_failure(dir: &Path) -> Result<Self> {
-        let mut created = Vec::new();
-        let mut d = Some(dir);
-        while let Some(p) = d.filter(|p| !p.as_os_str().is_empty() && !p.exists()) {
-            created.push(p.to_path_buf());
-            d = p.parent();
-        }
-        let files = AtomicFiles { staged: Vec::new(), created };
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("{}: cannot create the output directory", dir.display()))?;
-        let probe = dir.join(format!(".stepdamp-write-test-{}", std::process::id()));
-        std::fs::write(&probe, b"").with_context(|| format!("{}: output directory is not writable", dir.display()))?;
-        let _ = std::fs::remove_file(&probe);
-        Ok(files)
-    }
-
-    /// For files in `dir`, which must exist (nothing is created).
-    pub fn in_existing_dir(dir: &Path) -> Result<Self> {
-        if !dir.is_dir() {
-            bail!("directory {} does not exist", dir.display());
-        }
-        Ok(AtomicFiles { staged: Vec::new(), created: Vec::new() })
+        Self::in_dir(dir)
     }
 
     /// A temporary path to write `final_path` to (same directory, same extension).
-    pub fn stage(&mut self, final_path: &Path) -> PathBuf {
-        let name = final_path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-        let tmp = final_path.with_file_name(format!(".tmp-{}-{name}", std::process::id()));
-        self.staged.push((tmp.clone(), final_path.to_path_buf()));
-        tmp
+    pub fn stage(&mut self, final_path: &Path) -> Result<PathBuf> {
+        Ok(self.0.stage(final_path)?)
     }
 
-    /// Moves every staged file into place. If a move fails, the temporary files not yet
-    /// moved are removed (by `Drop`), so no `.tmp-*` file is left behind.
-    pub fn commit(mut self) -> Result<Vec<PathBuf>> {
-        // From here on the directory is the outputs' (also when a move fails: the files
-        // already moved stay, complete).
-        self.created.clear();
-        let mut done = Vec::new();
-        while !self.staged.is_empty() {
-            let (tmp, fin) = self.staged.remove(0);
-            if let Err(e) = std::fs::rename(&tmp, &fin) {
-                let _ = std::fs::remove_file(&tmp);
-                return Err(anyhow::Error::new(e).context(format!("{}: cannot write", fin.display())));
-            }
-            done.push(fin);
-        }
-        Ok(done)
+    /// Moves every staged file into place (a signal waits until all are moved).
+    pub fn commit(self) -> Result<Vec<PathBuf>> {
+        Ok(self.0.commit()?)
     }
 }
 
-impl Drop for AtomicFiles {
-    fn drop(&mut self) {
-        for (tmp, _) in &self.staged {
-            let _ = std::fs::remove_file(tmp);
-        }
-        // Deepest first; `remove_dir` leaves a directory that is not empty.
-        for d in &self.created {
-            if std::fs::remove_dir(d).is_err() {
-                break;
-            }
-        }
-    }
-}
-
-/// Writes a single file atomically (temporary file in the same directory, then rename).
+/// Writes a single file completely or not at all (see [`stepdamp_out::Output`]: a device,
+/// FIFO or `-` is written straight through, a symlink keeps its link).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = parent_dir(path);
-    let mut files = AtomicFiles::in_existing_dir(dir).with_context(|| path.display().to_string())?;
-    let tmp = files.stage(path);
-    std::fs::write(&tmp, bytes).with_context(|| format!("{}: cannot write", path.display()))?;
-    files.commit()?;
-    Ok(())
+    Ok(stepdamp_out::write_file(path, bytes)?)
 }
 
-/// The directory a file path is in (`.` for a bare name).
-pub fn parent_dir(path: &Path) -> &Path {
-    path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."))
+/// Whether an error is (caused by) the reader closing standard output or the pipe an
+/// output was written to (`--log /dev/stdout | head`).
+pub fn is_stdout_closed(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        c.is::<StdoutClosed>() || c.downcast_ref::<stepdamp_out::OutError>().is_some_and(|o| o.is_broken_pipe())
+    })
 }
 
 #[cfg(test)]
@@ -266,18 +204,17 @@ mod tests {
         let out = dir.path().join("new/deeper");
         {
             let mut f = AtomicFiles::in_dir_removed_on_failure(&out).unwrap();
-            let tmp = f.stage(&out.join("a.csv"));
+            let tmp = f.stage(&out.join("a.csv")).unwrap();
             std::fs::write(&tmp, b"x").unwrap();
             // Dropped without commit.
         }
         assert!(files(dir.path()).is_empty(), "{:?}", files(dir.path()));
-        // `in_dir` keeps the directory it creates (identification writes into it later).
+        // Nothing staged and nothing committed: the new directory goes too.
         drop(AtomicFiles::in_dir(&out).unwrap());
-        assert!(out.is_dir());
-        std::fs::remove_dir_all(dir.path().join("new")).unwrap();
+        assert!(files(dir.path()).is_empty(), "{:?}", files(dir.path()));
         // A committed directory stays, and so does an existing one.
         let mut f = AtomicFiles::in_dir_removed_on_failure(&out).unwrap();
-        let tmp = f.stage(&out.join("a.csv"));
+        let tmp = f.stage(&out.join("a.csv")).unwrap();
         std::fs::write(&tmp, b"x").unwrap();
         f.commit().unwrap();
         drop(AtomicFiles::in_dir_removed_on_failure(&out).unwrap());
@@ -297,7 +234,7 @@ mod tests {
         let target = dir.path().join("a.csv");
         {
             let mut f = AtomicFiles::in_dir(dir.path()).unwrap();
-            let tmp = f.stage(&target);
+            let tmp = f.stage(&target).unwrap();
             std::fs::write(&tmp, b"x").unwrap();
             // Dropped without commit.
         }
@@ -307,15 +244,16 @@ mod tests {
     #[test]
     fn a_failed_move_leaves_no_temporary_file_behind() {
         let dir = tempfile::tempdir().unwrap();
-        // The second target is an existing non-empty directory: renaming a file onto it fails.
+        let mut f = AtomicFiles::in_dir(dir.path()).unwrap();
+        for name in ["a.csv", "b.csv", "c.csv"] {
+            let tmp = f.stage(&dir.path().join(name)).unwrap();
+            std::fs::write(&tmp, b"x").unwrap();
+        }
+        // The second target becomes a non-empty directory after staging: renaming a file
+        // onto it fails.
         let blocker = dir.path().join("b.csv");
         std::fs::create_dir(&blocker).unwrap();
         std::fs::write(blocker.join("keep"), b"").unwrap();
-        let mut f = AtomicFiles::in_dir(dir.path()).unwrap();
-        for name in ["a.csv", "b.csv", "c.csv"] {
-            let tmp = f.stage(&dir.path().join(name));
-            std::fs::write(&tmp, b"x").unwrap();
-        }
         let e = f.commit().unwrap_err().to_string();
         assert!(e.contains("b.csv") && e.contains("cannot write"), "{e}");
         let mut left: Vec<String> = std::fs::read_dir(dir.path())

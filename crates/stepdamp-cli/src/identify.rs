@@ -403,15 +403,14 @@ fn run_run_cmd(a: RunArgs, global: &Global) -> Result<()> {
     if a.out.exists() && !a.out.is_dir() {
         bail!("--out {}: exists and is not a directory", a.out.display());
     }
-    // Everything is checked: create the directory now, and remove it again if this run
-    // created it and then fails, so an error leaves nothing behind.
-    let created = !a.out.exists();
-    AtomicFiles::in_dir(&a.out)?;
+    // Everything is checked: create the directory now. If the run fails or is interrupted,
+    // a directory it created is removed, and from an existing one what it added.
+    let out_dir = stepdamp_out::OutputDir::prepare(&a.out)?;
     let result = simulate_and_identify(&a, global, &motor, &orders, &po, &p);
     // A reader that closed standard output (`| head`) is not a failure of the run: keep
     // what was written.
-    if created && result.as_ref().is_err_and(|e| !crate::common::is_stdout_closed(e)) {
-        let _ = std::fs::remove_dir_all(&a.out);
+    if result.as_ref().is_ok() || result.as_ref().is_err_and(crate::common::is_stdout_closed) {
+        out_dir.finish();
     }
     result
 }
@@ -677,7 +676,7 @@ fn write_report(dir: &Path, f: &Fit, refined: Option<(&Refinement, &Plan)>, titl
     };
     let spec_svg = dir.join("spectrum.svg");
     let spec_png = dir.join("spectrum.png");
-    let (t1, t2) = (files.stage(&spec_svg), files.stage(&spec_png));
+    let (t1, t2) = (files.stage(&spec_svg)?, files.stage(&spec_png)?);
     let stitle = format!("{title}: effort ripple by harmonic order");
     {
         let root = SVGBackend::new(&t1, (1000, 600)).into_drawing_area();
@@ -691,7 +690,7 @@ fn write_report(dir: &Path, f: &Fit, refined: Option<(&Refinement, &Plan)>, titl
     }
     let res_svg = dir.join("residual.svg");
     let res_png = dir.join("residual.png");
-    let (t3, t4) = (files.stage(&res_svg), files.stage(&res_png));
+    let (t3, t4) = (files.stage(&res_svg)?, files.stage(&res_png)?);
     let model = Model::from_fit(f);
     let rtitle = format!("{title}: needed torque and residual against electrical angle");
     {

@@ -1,7 +1,7 @@
 //! `stepdamp simulate`: one constant-speed run, optionally logged per control period.
 
 use crate::Global;
-use crate::common::{AtomicFiles, load_motor, parent_dir, parse_compensations, parse_modes};
+use crate::common::{load_motor, parse_compensations, parse_modes};
 use anyhow::{Context, Result, anyhow, bail};
 use std::path::PathBuf;
 use stepdamp_sim::runlog::{FromRecord, LogRow};
@@ -48,7 +48,8 @@ pub struct SimulateArgs {
     /// Seed of the noise generator.
     #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     pub seed: u64,
-    /// Write the run log (one row per control period, design.md §6) to this CSV file.
+    /// Write the run log (one row per control period, docs/files.md) to this CSV file; a
+    /// device, FIFO or `-` (standard output) is written straight through.
     #[arg(long)]
     pub log: Option<PathBuf>,
 }
@@ -109,39 +110,40 @@ pub fn run(a: SimulateArgs, _g: &Global) -> Result<()> {
     };
     let mut lp = ClosedLoop::new(&motor, &controller, *mode, *comp, &opts)?;
     // The log is streamed to a temporary file next to its target and moved into place
-    // when complete, so an error leaves nothing half-written.
+    // when complete (a device, FIFO or `-` is written straight through), so an error or
+    // an interruption leaves nothing half-written.
     let mut log = match &a.log {
         Some(path) => {
-            let mut files =
-                AtomicFiles::in_existing_dir(parent_dir(path)).with_context(|| format!("--log {}", path.display()))?;
-            let tmp = files.stage(path);
-            let file = std::fs::File::create(&tmp).with_context(|| format!("{}: cannot write", path.display()))?;
-            Some((files, csv::Writer::from_writer(std::io::BufWriter::new(file)), path))
+            let out = stepdamp_out::Output::create(path).with_context(|| "--log".to_string())?;
+            Some(csv::Writer::from_writer(out))
         }
         None => None,
     };
     let mut rows = 0usize;
     let mut write_error: Option<csv::Error> = None;
     let m = run_spec(&mut lp, &spec, pwm, |k, rec| {
-        if let (Some((_, w, _)), None) = (&mut log, &write_error) {
+        if let (Some(w), None) = (&mut log, &write_error) {
             match w.serialize(LogRow::from_record(k, pwm, nr, rec)) {
                 Ok(()) => rows += 1,
                 Err(e) => write_error = Some(e),
             }
         }
     })?;
-    let written = match log {
-        Some((files, mut w, path)) => {
-            let flushed = match write_error {
-                Some(e) => Err(e.into()),
-                None => w.flush(),
+    let written = match (log, &a.log) {
+        (Some(w), Some(path)) => {
+            let out = match write_error.map(csv::Error::into_kind) {
+                Some(csv::ErrorKind::Io(e)) => Err(e),
+                Some(other) => Err(std::io::Error::other(format!("{other:?}"))),
+                None => w.into_inner().map_err(|e| e.into_error()),
             };
-            flushed.with_context(|| format!("{}: cannot write", path.display()))?;
-            drop(w);
-            files.commit()?;
+            let out = out.map_err(|e| match e.kind() {
+                std::io::ErrorKind::BrokenPipe => anyhow::Error::new(crate::common::StdoutClosed),
+                _ => anyhow!("{}: cannot write: {e}", path.display()),
+            })?;
+            out.commit()?;
             Some(path)
         }
-        None => None,
+        _ => None,
     };
     outln!(
         "{} {} compensation {} at {} rad/s: velocity error rms {:.4} rad/s, pp {:.4} rad/s, max load angle {:.3} electrical rad{}",

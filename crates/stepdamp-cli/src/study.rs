@@ -36,13 +36,13 @@ pub fn run(a: StudyArgs, g: &Global) -> Result<()> {
     let summary = study.summarize(&table)?;
 
     let csv_path = a.out.join("study.csv");
-    let tmp = files.stage(&csv_path);
+    let tmp = files.stage(&csv_path)?;
     write_table(&tmp, &table).with_context(|| format!("{}: cannot write", csv_path.display()))?;
     let json = a.out.join("study-summary.json");
-    std::fs::write(files.stage(&json), summary.to_json())
+    std::fs::write(files.stage(&json)?, summary.to_json())
         .with_context(|| format!("{}: cannot write", json.display()))?;
     let (png, svg) = (a.out.join("study-cdf.png"), a.out.join("study-cdf.svg"));
-    let (tpng, tsvg) = (files.stage(&png), files.stage(&svg));
+    let (tpng, tsvg) = (files.stage(&png)?, files.stage(&svg)?);
     cdf_plot(&table, &summary, &tsvg, &tpng)?;
     let written = files.commit()?;
 

@@ -160,11 +160,11 @@ pub fn run(a: SweepArgs, g: &Global) -> Result<()> {
     let wall = t0.elapsed().as_secs_f64();
 
     let csv_path = a.out.join("sweep.csv");
-    let tmp = files.stage(&csv_path);
+    let tmp = files.stage(&csv_path)?;
     write_table(&tmp, &rows).with_context(|| format!("{}: cannot write", csv_path.display()))?;
     let svg = a.out.join("sweep.svg");
     let png = a.out.join("sweep.png");
-    let (tsvg, tpng) = (files.stage(&svg), files.stage(&png));
+    let (tsvg, tpng) = (files.stage(&svg)?, files.stage(&png)?);
     let mut title = format!("{}: velocity error vs speed", motor.name);
     if a.load_torque > 0.0 {
         title += &format!(", load {} N·m", a.load_torque);

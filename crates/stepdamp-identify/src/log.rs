@@ -1,4 +1,4 @@
-//! Run logs (design.md §6): CSV with a header row, one row per control period, read into
+//! Run logs (docs/files.md, "Run log"): CSV with a header row, one row per control period, read into
 //! the few columns identification needs.
 //!
 //! # Columns
@@ -22,20 +22,46 @@
 //!
 //! Every [`LogError`] names the file, and where it applies the line (1 = the header) and
 //! the column: a missing column, an unparseable or non-finite value, a time that does not
-//! increase, a log that covers too few electrical periods.
+//! increase, a log that covers too few electrical periods, a line longer than
+//! [`MAX_LINE_BYTES`], a header wider than [`MAX_COLUMNS`]. Text from the file is shown
+//! with control characters escaped and cut to [`SHOWN_CHARS`] characters (at most
+//! [`SHOWN_COLUMNS`] column names), so a binary file never reaches the terminal raw.
 //!
 //! # Cost
 //!
-//! One pass over the bytes with the `csv` crate, parsing only the needed columns: about
-//! 0.5 µs per row of the §6 log in a release build (200 000 rows in ≈ 0.1 s).
+//! One streaming pass over the bytes with the `csv` crate (no quoting: a log is numbers),
+//! parsing only the needed columns into `f64` vectors as the rows come: memory is 8 bytes
+//! per kept value (×2 at most while a vector grows) plus one line, never the text. About
+//! 0.5 µs per row of the §6 log in a release build (200 000 rows in ≈ 0.1 s). Input that is
+//! not a log (`/dev/zero`, a file of zeros) is refused after at most [`MAX_LINE_BYTES`].
 
 use std::io::Read;
 use std::path::Path;
+use stepdamp_out::input::{LineLimited, LineTooLong, printable};
 use stepdamp_profile::LogRow;
 
-/// The columns a run log must or may carry (design.md §6).
+/// The columns a run log must or may carry (docs/files.md, "Run log").
 pub const KNOWN_COLUMNS: [&str; 9] =
     ["t_s", "theta_cmd_rad", "theta_fb_rad", "omega_fb_rad_s", "i_a_a", "i_b_a", "i_d_a", "i_q_a", "iq_cmd_a"];
+
+/// Longest line accepted, in bytes. A §6 row is about 200 bytes and a header of
+/// [`MAX_COLUMNS`] 60-character names 60 KiB; anything longer is not a run log, and the
+/// bound keeps one line's buffer small whatever the input.
+pub const MAX_LINE_BYTES: usize = 64 * 1024;
+
+/// Largest `|θ_fb|` accepted, rad (160 million revolutions: days of logging at 1000 rad/s).
+/// Beyond it `sin(k·Nr·θ)` loses its meaning in `f64` (the spacing of `f64` near
+/// `Nr·θ = 5·10¹⁰` is 8·10⁻⁶ rad, and grows with θ) and the Park transform overflows to NaN.
+pub const MAX_ANGLE_RAD: f64 = 1e9;
+
+/// Most columns a header may have (the §6 log has 9; tools add a few dozen at most).
+pub const MAX_COLUMNS: usize = 1024;
+
+/// Most characters of one text from the file (a value, a column name) quoted in a message.
+pub const SHOWN_CHARS: usize = 40;
+
+/// Most column names listed in a message.
+pub const SHOWN_COLUMNS: usize = 20;
 
 /// Fewest electrical periods a log must cover by default (a harmonic fit needs whole periods;
 /// fewer than two cannot separate the first harmonic from a drift).
@@ -137,6 +163,18 @@ pub enum LogError {
         /// The text found.
         value: String,
     },
+    /// An angle beyond [`MAX_ANGLE_RAD`].
+    #[error("{path}: line {line}, column 'theta_fb_rad': {value} rad is beyond ±{max:e} rad (is it in radians?)")]
+    AngleOutOfRange {
+        /// The file.
+        path: String,
+        /// Line number.
+        line: u64,
+        /// The angle.
+        value: f64,
+        /// The limit.
+        max: f64,
+    },
     /// A row has more or fewer fields than the header.
     #[error("{path}: line {line}: {found} fields, the header has {expected}")]
     ShortRow {
@@ -148,6 +186,28 @@ pub enum LogError {
         found: usize,
         /// Fields in the header.
         expected: usize,
+    },
+    /// A line is longer than [`MAX_LINE_BYTES`].
+    #[error(
+        "{path}: line {line} is longer than {limit} bytes: not a run log (CSV with a header row, one row per control period)"
+    )]
+    LineTooLong {
+        /// The file.
+        path: String,
+        /// Line number (1 = header).
+        line: u64,
+        /// The limit in bytes.
+        limit: usize,
+    },
+    /// The header has more than [`MAX_COLUMNS`] columns.
+    #[error("{path}: line 1 (header): {found} columns, at most {max} are accepted: not a run log")]
+    TooManyColumns {
+        /// The file.
+        path: String,
+        /// Columns found.
+        found: usize,
+        /// The limit.
+        max: usize,
     },
     /// The CSV itself is malformed.
     #[error("{path}: line {line}: malformed CSV: {message}")]
@@ -192,11 +252,66 @@ pub enum LogError {
     },
 }
 
-/// Reads a run log from a file.
+/// Reads a run log from a file, streaming (see the module's "Cost").
 pub fn read_log(path: &Path, opts: &LogOptions) -> Result<RunLog, LogError> {
     let name = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|source| LogError::Io { path: name.clone(), source })?;
-    parse_log(&bytes[..], &name, opts)
+    let file = std::fs::File::open(path).map_err(|source| LogError::Io { path: name.clone(), source })?;
+    parse_log(file, &name, opts)
+}
+
+/// A CSV reader over `reader` for logs and tables: no quoting (numbers only, so a record is
+/// a line), fields trimmed, any number of fields per row (checked by the caller), lines
+/// bounded by [`MAX_LINE_BYTES`].
+pub(crate) fn bounded_csv<R: Read>(reader: R) -> csv::Reader<LineLimited<R>> {
+    csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .quoting(false)
+        .trim(csv::Trim::All)
+        .from_reader(LineLimited::new(reader, MAX_LINE_BYTES))
+}
+
+/// What went wrong in the CSV reader: a line too long, an I/O error, or malformed CSV.
+pub(crate) enum CsvFailure {
+    LineTooLong { line: u64, limit: usize },
+    Io(std::io::Error),
+    Malformed { line: u64, message: String },
+}
+
+impl CsvFailure {
+    pub(crate) fn of(e: csv::Error) -> CsvFailure {
+        let line = e.position().map_or(0, |p| p.line());
+        let message = printable(e.to_string().as_bytes(), 200);
+        match e.into_kind() {
+            csv::ErrorKind::Io(io) => match LineTooLong::from_io(&io) {
+                Some(t) => CsvFailure::LineTooLong { line: t.line, limit: t.limit },
+                None => CsvFailure::Io(io),
+            },
+            _ => CsvFailure::Malformed { line, message },
+        }
+    }
+}
+
+/// The header's names: the first one without a byte-order mark, surrounding `"` removed
+/// (a header quoted by a spreadsheet), control characters escaped and long names cut.
+pub(crate) fn header_names(rec: &csv::ByteRecord) -> Vec<String> {
+    rec.iter()
+        .enumerate()
+        .map(|(i, f)| {
+            let f = if i == 0 { f.strip_prefix("\u{feff}".as_bytes()).unwrap_or(f) } else { f };
+            let f = f.strip_prefix(b"\"").and_then(|f| f.strip_suffix(b"\"")).unwrap_or(f);
+            printable(f, SHOWN_CHARS)
+        })
+        .collect()
+}
+
+/// At most [`SHOWN_COLUMNS`] names, comma-separated, then how many more.
+pub(crate) fn column_list(names: &[String]) -> String {
+    let mut s = names.iter().take(SHOWN_COLUMNS).cloned().collect::<Vec<_>>().join(", ");
+    if names.len() > SHOWN_COLUMNS {
+        s += &format!(", … ({} columns in all)", names.len());
+    }
+    s
 }
 
 #[derive(Clone, Copy)]
@@ -213,15 +328,14 @@ enum Col {
 /// Parses a run log from any reader; `source` names it in errors.
 pub fn parse_log<R: Read>(reader: R, source: &str, opts: &LogOptions) -> Result<RunLog, LogError> {
     let path = source.to_string();
-    let mut rdr = csv::ReaderBuilder::new().has_headers(false).flexible(true).trim(csv::Trim::All).from_reader(reader);
+    let mut rdr = bounded_csv(reader);
     let mut rec = csv::ByteRecord::new();
     let csv_err = |e: csv::Error, path: &str| {
-        let line = e.position().map_or(0, |p| p.line());
-        match e.kind() {
-            csv::ErrorKind::Io(_) => {
-                LogError::Io { path: path.to_string(), source: std::io::Error::other(e.to_string()) }
-            }
-            _ => LogError::Csv { path: path.to_string(), line, message: e.to_string() },
+        let path = path.to_string();
+        match CsvFailure::of(e) {
+            CsvFailure::LineTooLong { line, limit } => LogError::LineTooLong { path, line, limit },
+            CsvFailure::Io(source) => LogError::Io { path, source },
+            CsvFailure::Malformed { line, message } => LogError::Csv { path, line, message },
         }
     };
     if !rdr.read_byte_record(&mut rec).map_err(|e| csv_err(e, &path))? {
@@ -229,12 +343,15 @@ pub fn parse_log<R: Read>(reader: R, source: &str, opts: &LogOptions) -> Result<
             path, what: "empty file: expected a header row (t_s, theta_fb_rad, i_q_a, …)"
         });
     }
-    let header: Vec<String> =
-        rec.iter().map(|f| String::from_utf8_lossy(f).trim_start_matches('\u{feff}').to_string()).collect();
+    if rec.len() > MAX_COLUMNS {
+        return Err(LogError::TooManyColumns { path, found: rec.len(), max: MAX_COLUMNS });
+    }
+    let header = header_names(&rec);
     let mut cols = Vec::with_capacity(header.len());
     let mut ignored = Vec::new();
-    for (i, h) in header.iter().enumerate() {
-        if header[..i].contains(h) {
+    let mut seen = std::collections::HashSet::with_capacity(header.len());
+    for h in &header {
+        if !seen.insert(h.as_str()) {
             return Err(LogError::DuplicateColumn { path, column: h.clone() });
         }
         cols.push(match h.as_str() {
@@ -252,12 +369,12 @@ pub fn parse_log<R: Read>(reader: R, source: &str, opts: &LogOptions) -> Result<
             }
         });
     }
-    let has = |c: &str| header.iter().any(|h| h == c);
+    let has = |c: &str| seen.contains(c);
     let missing = |column: &'static str, need: &'static str| LogError::MissingColumn {
         path: path.clone(),
         column,
         need,
-        found: header.join(", "),
+        found: column_list(&header),
     };
     if !has("t_s") {
         return Err(missing("t_s", "time in s"));
@@ -316,10 +433,14 @@ pub fn parse_log<R: Read>(reader: R, source: &str, opts: &LogOptions) -> Result<
                     path,
                     line,
                     column: header[i].clone(),
-                    value: String::from_utf8_lossy(field).into_owned(),
+                    value: printable(field, SHOWN_CHARS),
                 });
             };
             target.push(v);
+        }
+        let thn = *th.last().expect("theta_fb_rad is a column");
+        if thn.abs() > MAX_ANGLE_RAD {
+            return Err(LogError::AngleOutOfRange { path, line, value: thn, max: MAX_ANGLE_RAD });
         }
         let tn = *t.last().expect("t_s is a column");
         if tn <= prev_t {
@@ -502,5 +623,63 @@ mod tests {
         assert!(parse(HEAD).unwrap_err().to_string().contains("run.csv: no data rows"));
         let e = read_log(Path::new("/no/such/dir/x.csv"), &LogOptions::new(50)).unwrap_err().to_string();
         assert!(e.contains("/no/such/dir/x.csv") && e.contains("cannot read"), "{e}");
+    }
+
+    #[test]
+    fn an_endless_input_is_refused_at_the_line_bound() {
+        let e = read_log(Path::new("/dev/zero"), &LogOptions::new(50)).unwrap_err().to_string();
+        assert!(e.contains("/dev/zero: line 1 is longer than 65536 bytes"), "{e}");
+        // A good header, then endless zeros: refused on line 2, having buffered one line.
+        let endless = HEAD.as_bytes().chain(std::io::repeat(0));
+        let e = parse_log(endless, "run.csv", &LogOptions::new(50)).unwrap_err().to_string();
+        assert!(e.contains("run.csv: line 2 is longer than"), "{e}");
+    }
+
+    #[test]
+    fn a_very_wide_header_is_refused_on_line_one() {
+        let wide: String = (0..200_000).map(|i| format!("c{i},")).collect();
+        let e = parse(&format!("{wide}\n0\n")).unwrap_err().to_string();
+        assert!(e.contains("run.csv: line 1 is longer than 65536 bytes"), "{e}");
+        // Within the byte bound but over the column bound.
+        let many: Vec<String> = (0..MAX_COLUMNS + 1).map(|i| format!("{i}")).collect();
+        let e = parse(&format!("{}\n", many.join(","))).unwrap_err().to_string();
+        assert!(e.contains("line 1 (header): 1025 columns, at most 1024"), "{e}");
+    }
+
+    #[test]
+    fn a_missing_column_lists_a_bounded_number_of_names_and_duplicates_are_found_among_many() {
+        let names: Vec<String> = (0..MAX_COLUMNS).map(|i| format!("x{i}")).collect();
+        let e = parse(&format!("{}\n", names.join(","))).unwrap_err().to_string();
+        assert!(e.contains("x19, … (1024 columns in all)") && !e.contains("x20,"), "{e}");
+        let mut dup = names.clone();
+        dup[MAX_COLUMNS - 1] = "x3".into();
+        let e = parse(&format!("{}\n", dup.join(","))).unwrap_err().to_string();
+        assert!(e.contains("'x3' appears twice"), "{e}");
+    }
+
+    #[test]
+    fn binary_bytes_from_the_file_are_never_echoed_raw() {
+        let text = format!("{HEAD}0.0,0,\x1b[2J\x07\n");
+        let e = parse(&text).unwrap_err().to_string();
+        assert!(!e.contains('\x1b') && !e.contains('\x07') && e.contains("\\u{1b}[2J"), "{e}");
+        let e = parse_log(&b"t_s,\xff\x1b]0;x\x07\n"[..], "run.csv", &LogOptions::new(50)).unwrap_err().to_string();
+        assert!(!e.contains('\x1b') && !e.contains('\x07') && e.contains("line 1"), "{e}");
+        let long = "9".repeat(1000);
+        let e = parse(&format!("{HEAD}0.0,0,{long}x\n")).unwrap_err().to_string();
+        assert!(e.len() < 300, "{e}");
+    }
+
+    #[test]
+    fn a_header_quoted_by_a_spreadsheet_is_read() {
+        let text = format!("\u{feff}\"t_s\",\"theta_fb_rad\",\"i_q_a\"\n{}", body(6000));
+        assert_eq!(parse(&text).unwrap().len(), 6000);
+    }
+
+    #[test]
+    fn a_huge_angle_is_refused_instead_of_turning_the_torque_current_into_nan() {
+        // Found by fuzzing: θ = 1.5e307 made Nr·θ overflow, sin(inf) = NaN, and i_q NaN.
+        let text = "t_s,theta_fb_rad,i_a_a,i_b_a\n0,0,0.5,-0.5\n0.001,0.150000000000000021e308,0.5,-0.5\n";
+        let e = parse(text).unwrap_err().to_string();
+        assert!(e.contains("run.csv: line 3, column 'theta_fb_rad'") && e.contains("1e9"), "{e}");
     }
 }

@@ -123,22 +123,20 @@ pub fn run_plan(
     }
 }
 
-/// Writes log rows to `path` through a temporary file in the same directory.
+/// Writes log rows to `path` through a temporary file in the same directory (a device,
+/// FIFO or `-` straight through; see [`stepdamp_out::Output`]): complete or not at all,
+/// also when the process is interrupted.
 pub fn write_rows_atomic(path: &Path, rows: &[LogRow]) -> Result<(), PlanError> {
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let tmp = path.with_file_name(format!(".tmp-{}-{name}", std::process::id()));
-    let write = || -> std::io::Result<()> {
-        let f = std::fs::File::create(&tmp)?;
-        let mut w = std::io::BufWriter::with_capacity(1 << 20, f);
-        write_csv(&mut w, rows).map_err(std::io::Error::other)?;
-        std::io::Write::flush(&mut w)?;
-        drop(w);
-        std::fs::rename(&tmp, path)
+    let io_err = |source| PlanError::Write { path: path.to_path_buf(), source };
+    // The output's message names the path already; keep only its reason here.
+    let out_err = |e: stepdamp_out::OutError| match e.kind {
+        stepdamp_out::OutErrorKind::Io(source) => io_err(source),
+        _ => io_err(std::io::Error::other(e.to_string())),
     };
-    write().map_err(|source| {
-        let _ = std::fs::remove_file(&tmp);
-        PlanError::Write { path: path.to_path_buf(), source }
-    })
+    let mut out = stepdamp_out::Output::create(path).map_err(out_err)?;
+    write_csv(&mut out, rows).map_err(|e| io_err(std::io::Error::other(e)))?;
+    out.commit().map_err(out_err)?;
+    Ok(())
 }
 
 #[cfg(test)]

@@ -1,4 +1,4 @@
-//! The static route (design.md §5): a torque-versus-angle table → FFT → detent harmonics.
+//! The static route (docs/files.md, "Static torque table"): a torque-versus-angle table → FFT → detent harmonics.
 //!
 //! # Input
 //!
@@ -30,12 +30,19 @@
 //! bins between whole orders are reported as the non-periodic rest.
 
 use crate::fit::wrap_pi;
+use crate::log::{CsvFailure, MAX_COLUMNS, SHOWN_CHARS, bounded_csv, column_list, header_names};
 use realfft::RealFftPlanner;
 use std::f64::consts::{FRAC_PI_2, TAU};
 use std::path::Path;
+use stepdamp_out::input::printable;
 
 /// Most electrical periods a table may span (a million points at 100 per period).
 pub const MAX_PERIODS: f64 = 10_000.0;
+
+/// Largest `|torque|` a table may hold, N·m: far above any stepper's (the largest hybrid
+/// steppers hold about 50 N·m), and small enough that the FFT of a million points stays
+/// finite (a value near `f64::MAX` made the harmonics infinite).
+pub const MAX_TORQUE_NM: f64 = 1e6;
 
 /// Which torque the table holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -146,54 +153,68 @@ pub enum StaticError {
     },
 }
 
-/// Reads a `theta_rad, torque_nm` table; returns the points.
+/// Reads a `theta_rad, torque_nm` table, streaming (lines bounded by
+/// [`crate::log::MAX_LINE_BYTES`], header by [`crate::log::MAX_COLUMNS`]); returns the points.
 pub fn read_table(path: &Path) -> Result<Vec<(f64, f64)>, StaticError> {
     let name = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|source| StaticError::Io { path: name.clone(), source })?;
-    parse_table(&bytes[..], &name)
+    let file = std::fs::File::open(path).map_err(|source| StaticError::Io { path: name.clone(), source })?;
+    parse_table(file, &name)
 }
 
-/// Parses a `theta_rad, torque_nm` table from a reader; `source` names it in errors.
+/// Parses a `theta_rad, torque_nm` table from a reader; `source` names it in errors. Text
+/// from the file is quoted with control characters escaped and cut (see [`crate::log`]).
 pub fn parse_table<R: std::io::Read>(reader: R, source: &str) -> Result<Vec<(f64, f64)>, StaticError> {
     let path = source.to_string();
-    let mut rdr = csv::ReaderBuilder::new().has_headers(false).flexible(true).trim(csv::Trim::All).from_reader(reader);
-    let mut rec = csv::StringRecord::new();
-    let csv_err = |e: csv::Error| StaticError::Csv {
-        path: path.clone(),
-        line: e.position().map_or(0, |p| p.line()),
-        message: e.to_string(),
+    let mut rdr = bounded_csv(reader);
+    let mut rec = csv::ByteRecord::new();
+    let csv_err = |e: csv::Error| match CsvFailure::of(e) {
+        CsvFailure::LineTooLong { line, limit } => StaticError::Csv {
+            path: path.clone(),
+            line,
+            message: format!("line longer than {limit} bytes: not a theta_rad, torque_nm table"),
+        },
+        CsvFailure::Io(source) => StaticError::Io { path: path.clone(), source },
+        CsvFailure::Malformed { line, message } => StaticError::Csv { path: path.clone(), line, message },
     };
-    if !rdr.read_record(&mut rec).map_err(csv_err)? {
+    if !rdr.read_byte_record(&mut rec).map_err(csv_err)? {
         return Err(StaticError::Span {
             path,
             reason: "empty file: expected a header row theta_rad, torque_nm".into(),
         });
     }
-    let header: Vec<String> = rec.iter().map(|h| h.trim_start_matches('\u{feff}').to_string()).collect();
+    if rec.len() > MAX_COLUMNS {
+        return Err(StaticError::Csv {
+            path,
+            line: 1,
+            message: format!("header of {} columns, at most {MAX_COLUMNS} are accepted", rec.len()),
+        });
+    }
+    let header = header_names(&rec);
     let col = |name: &'static str| {
         header.iter().position(|h| h == name).ok_or_else(|| StaticError::MissingColumn {
             path: path.clone(),
             column: name,
-            found: header.join(", "),
+            found: column_list(&header),
         })
     };
     let (ct, cq) = (col("theta_rad")?, col("torque_nm")?);
     let mut pts: Vec<(f64, f64)> = Vec::new();
     let mut line = 1;
     loop {
-        match rdr.read_record(&mut rec) {
+        match rdr.read_byte_record(&mut rec) {
             Ok(true) => {}
             Ok(false) => break,
             Err(e) => return Err(csv_err(e)),
         }
         line = rec.position().map_or(line + 1, |p| p.line());
         let get = |c: usize, column: &'static str| {
-            let text = rec.get(c).unwrap_or("");
-            text.parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| StaticError::BadValue {
+            let text = rec.get(c).unwrap_or(b"");
+            let v = std::str::from_utf8(text).ok().and_then(|t| t.parse::<f64>().ok());
+            v.filter(|v| v.is_finite()).ok_or_else(|| StaticError::BadValue {
                 path: path.clone(),
                 line,
                 column,
-                value: text.to_string(),
+                value: printable(text, SHOWN_CHARS),
             })
         };
         let (th, tq) = (get(ct, "theta_rad")?, get(cq, "torque_nm")?);
@@ -224,6 +245,14 @@ pub fn analyse(
     }
     if pole_pairs == 0 || max_order == 0 {
         return Err(span_err("pole pairs and the highest order must be ≥ 1".into()));
+    }
+    if let Some((i, &(th, tq))) =
+        points.iter().enumerate().find(|(_, p)| !(p.0.is_finite() && p.1.abs() <= MAX_TORQUE_NM))
+    {
+        return Err(span_err(format!(
+            "point {} (θ = {th} rad): torque {tq} N·m is not a finite value within ±{MAX_TORQUE_NM:e} N·m (is it in N·m?)",
+            i + 1
+        )));
     }
     for w in points.windows(2) {
         if w[1].0.partial_cmp(&w[0].0) != Some(std::cmp::Ordering::Greater) {
@@ -464,5 +493,25 @@ mod tests {
         // A short row names the column it lacks, not a parser's field count.
         let e = parse_table("theta_rad,torque_nm\n0.0,1\n0.1\n".as_bytes(), "c.csv").unwrap_err().to_string();
         assert!(e.contains("c.csv") && e.contains("line 3") && e.contains("torque_nm"), "{e}");
+    }
+
+    #[test]
+    fn an_endless_or_binary_table_is_refused_without_echoing_it() {
+        let e = read_table(Path::new("/dev/zero")).unwrap_err().to_string();
+        assert!(e.contains("/dev/zero: line 1") && e.contains("longer than 65536 bytes"), "{e}");
+        let e = parse_table(&b"theta_rad,torque_nm\n0,\x1b[31m\n"[..], "t.csv").unwrap_err().to_string();
+        assert!(!e.contains('\x1b') && e.contains("line 2") && e.contains("torque_nm"), "{e}");
+        let wide: Vec<String> = (0..5000).map(|i| format!("c{i}")).collect();
+        let e = parse_table(format!("{}\n", wide.join(",")).as_bytes(), "t.csv").unwrap_err().to_string();
+        assert!(e.contains("t.csv: line 1") && e.contains("5000 columns"), "{e}");
+    }
+
+    #[test]
+    fn a_torque_beyond_any_motor_is_refused_instead_of_giving_infinite_harmonics() {
+        // Found by fuzzing: one point of 1e308 N·m made the FFT's amplitudes infinite.
+        let mut pts = table(64, 1.0, 1.0, false, false);
+        pts[0].1 = 1e308;
+        let e = analyse(&pts, 50, TorqueSign::OnRotor, 4, "t.csv").unwrap_err().to_string();
+        assert!(e.contains("t.csv") && e.contains("point 1") && e.contains("1e6 N·m"), "{e}");
     }
 }

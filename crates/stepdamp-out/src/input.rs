@@ -1,0 +1,154 @@
+//! Bounded input: a file read whole only up to a byte limit, a reader that refuses a line
+//! longer than a limit, and text made safe to print.
+//!
+//! Why: `/dev/zero`, a 2 GB file of zeros or a file that is not what was expected must be
+//! refused within seconds and a few MB of memory, not read to the end; and bytes from a file
+//! must not reach a terminal as control sequences.
+
+use std::io::{self, Read};
+use std::path::Path;
+
+/// Reads a whole text file of at most `max_bytes` bytes (profiles, small tables). A longer
+/// input (or an endless one like `/dev/zero`) is refused after reading `max_bytes + 1`
+/// bytes, with an [`io::ErrorKind::InvalidData`] error saying the limit; so is text that is
+/// not UTF-8.
+pub fn read_to_string_bounded(path: &Path, max_bytes: u64) -> io::Result<String> {
+    let f = std::fs::File::open(path)?;
+    let mut buf = Vec::new();
+    f.take(max_bytes + 1).read_to_end(&mut buf)?;
+    if buf.len() as u64 > max_bytes {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidData,
+            format!("larger than {max_bytes} bytes: not a file of this kind (or an endless input)"),
+        ));
+    }
+    String::from_utf8(buf).map_err(|e| {
+        io::Error::new(io::ErrorKind::InvalidData, format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to()))
+    })
+}
+
+/// A line longer than the limit was read (see [`LineLimited`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LineTooLong {
+    /// The line, 1-based.
+    pub line: u64,
+    /// The limit in bytes.
+    pub limit: usize,
+}
+
+impl std::fmt::Display for LineTooLong {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "line {} is longer than {} bytes", self.line, self.limit)
+    }
+}
+
+impl std::error::Error for LineTooLong {}
+
+impl LineTooLong {
+    /// The [`LineTooLong`] inside an I/O error, if that is what it is.
+    pub fn from_io(e: &io::Error) -> Option<LineTooLong> {
+        e.get_ref().and_then(|r| r.downcast_ref::<LineTooLong>()).copied()
+    }
+}
+
+/// A reader that fails with [`LineTooLong`] (inside an [`io::ErrorKind::InvalidData`]
+/// error) as soon as a line exceeds `limit` bytes, so a parser above it never buffers more
+/// than that for one line. Cost: one `memchr`-like scan of the bytes read.
+#[derive(Debug)]
+pub struct LineLimited<R> {
+    inner: R,
+    limit: usize,
+    /// Bytes of the current line read so far.
+    current: usize,
+    /// The current line, 1-based.
+    line: u64,
+}
+
+impl<R: Read> LineLimited<R> {
+    /// Wraps `inner`; lines (without their `\n`) may be at most `limit` bytes.
+    pub fn new(inner: R, limit: usize) -> Self {
+        LineLimited { inner, limit, current: 0, line: 1 }
+    }
+}
+
+impl<R: Read> Read for LineLimited<R> {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        for &b in &buf[..n] {
+            if b == b'\n' {
+                self.line += 1;
+                self.current = 0;
+            } else {
+                self.current += 1;
+                if self.current > self.limit {
+                    let e = LineTooLong { line: self.line, limit: self.limit };
+                    return Err(io::Error::new(io::ErrorKind::InvalidData, e));
+                }
+            }
+        }
+        Ok(n)
+    }
+}
+
+/// `bytes` as text safe to print: invalid UTF-8 as `\u{fffd}`, control characters
+/// (including escape sequences' `ESC`) escaped as `\u{1b}`-style, at most `max_chars`
+/// characters (then `…`).
+pub fn printable(bytes: &[u8], max_chars: usize) -> String {
+    let text = String::from_utf8_lossy(bytes);
+    let mut out = String::new();
+    for (i, c) in text.chars().enumerate() {
+        if i == max_chars {
+            out.push('…');
+            break;
+        }
+        if c.is_control() || c == '\u{feff}' {
+            out.extend(c.escape_unicode());
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_endless_input_is_refused_after_the_limit() {
+        let e = read_to_string_bounded(Path::new("/dev/zero"), 1000).unwrap_err();
+        assert_eq!(e.kind(), io::ErrorKind::InvalidData);
+        assert!(e.to_string().contains("larger than 1000 bytes"), "{e}");
+    }
+
+    #[test]
+    fn a_file_within_the_limit_is_read_and_non_utf8_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.toml");
+        std::fs::write(&p, "name = \"x\"\n").unwrap();
+        assert_eq!(read_to_string_bounded(&p, 11).unwrap(), "name = \"x\"\n");
+        assert!(read_to_string_bounded(&p, 10).is_err());
+        std::fs::write(&p, b"ab\xff").unwrap();
+        assert!(read_to_string_bounded(&p, 10).unwrap_err().to_string().contains("byte 2"));
+    }
+
+    #[test]
+    fn a_long_line_is_refused_with_its_line_number() {
+        let text = format!("short\n{}\n", "x".repeat(100));
+        let mut r = LineLimited::new(text.as_bytes(), 50);
+        let mut sink = Vec::new();
+        let e = r.read_to_end(&mut sink).unwrap_err();
+        assert_eq!(LineTooLong::from_io(&e), Some(LineTooLong { line: 2, limit: 50 }));
+        let mut ok = LineLimited::new("a\nbb\n".as_bytes(), 2);
+        sink.clear();
+        ok.read_to_end(&mut sink).unwrap();
+        assert_eq!(sink, b"a\nbb\n");
+    }
+
+    #[test]
+    fn control_bytes_are_escaped_and_long_text_is_cut() {
+        assert_eq!(printable(b"a\x1b[31mb\x00", 100), "a\\u{1b}[31mb\\u{0}");
+        assert_eq!(printable(b"\xff\xfe", 100), "\u{fffd}\u{fffd}");
+        assert_eq!(printable(b"abcdef", 3), "abc…");
+    }
+}

@@ -1,0 +1,26 @@
+//! The run-log reader on any bytes: never a panic, an accepted log is consistent (equal
+//! column lengths, finite values, increasing time), and an error message never carries a
+//! control character from the input.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use stepdamp_identify::log::{LogOptions, parse_log};
+
+fuzz_target!(|data: &[u8]| {
+    let mut opts = LogOptions::new(50);
+    opts.min_electrical_periods = 0.0;
+    match parse_log(data, "fuzz.csv", &opts) {
+        Ok(log) => {
+            assert!(!log.is_empty());
+            assert_eq!(log.t_s.len(), log.theta_fb_rad.len());
+            assert_eq!(log.t_s.len(), log.i_q_a.len());
+            assert!(log.t_s.windows(2).all(|w| w[1] > w[0]));
+            assert!(log.theta_fb_rad.iter().chain(&log.i_q_a).all(|v| v.is_finite()));
+            assert!(log.ignored_columns.iter().all(|c| !c.chars().any(char::is_control)));
+        }
+        Err(e) => {
+            let msg = e.to_string();
+            assert!(!msg.chars().any(|c| c.is_control() && c != '\n'), "{msg:?}");
+        }
+    }
+});
