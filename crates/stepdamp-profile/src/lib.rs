@@ -36,7 +36,7 @@ mod validate;
 pub use data::{DetentTerm, DriveSection, EncoderSection, MotorSection, ProfileData, ServoSection, TopologyName};
 pub use error::ProfileError;
 pub use figures::{MotorFigures, MotorShow, ResonanceSpeed};
-pub use load::{MotorRef, PRESETS, preset_text};
+pub use load::{MAX_PROFILE_BYTES, MotorRef, PRESETS, preset_text};
 pub use profile::{Profile, TYPICAL_DETENT_ORDERS};
 pub use runlog::LogRow;
 pub use stepdamp_core::limits;

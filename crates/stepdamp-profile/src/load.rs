@@ -8,6 +8,10 @@ use std::path::Path;
 /// Names of the built-in presets; their files are `crates/stepdamp-profile/presets/`.
 pub const PRESETS: [&str; 4] = ["patent-motor", "nema17-17hs4401", "nema23-57mm", "nema34-86mm"];
 
+/// Largest profile file read, in bytes: 1 MiB, a thousand times a real profile (a preset is
+/// about 1 kB), so that a wrong path (`/dev/zero`, a log) is refused at once.
+pub const MAX_PROFILE_BYTES: u64 = 1 << 20;
+
 /// The TOML text of a preset.
 pub fn preset_text(name: &str) -> Option<&'static str> {
     Some(match name {
@@ -61,10 +65,11 @@ impl Profile {
         }
     }
 
-    /// Reads and validates a TOML profile.
+    /// Reads and validates a TOML profile of at most [`MAX_PROFILE_BYTES`] (a larger or
+    /// endless input, such as `/dev/zero`, is refused after reading that much).
     pub fn from_file(path: &Path) -> Result<Profile, ProfileError> {
-        let text =
-            std::fs::read_to_string(path).map_err(|source| ProfileError::Read { path: path.to_path_buf(), source })?;
+        let text = stepdamp_out::input::read_to_string_bounded(path, MAX_PROFILE_BYTES)
+            .map_err(|source| ProfileError::Read { path: path.to_path_buf(), source })?;
         Profile::from_toml_str(&text, &path.display().to_string())
     }
 
