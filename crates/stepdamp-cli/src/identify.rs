@@ -17,6 +17,7 @@ use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+use stepdamp_identify::conditions::InertiaMode;
 use stepdamp_identify::fit::{Effort, Fit, FitOptions, fit};
 use stepdamp_identify::log::{LogOptions, RunLog, read_log};
 use stepdamp_identify::model::Model;
@@ -24,6 +25,7 @@ use stepdamp_identify::plan::{Plan, PlanOptions, plan, run_plan};
 use stepdamp_identify::refine::{PERIODIC_ORDERS, RefineOptions, Refinement, refine, remaining_ripple_nm, series_nm};
 use stepdamp_identify::spectrum::order_spectrum;
 use stepdamp_identify::static_curve::{TorqueSign, analyse, read_table};
+use stepdamp_identify::validation::{Validation, default_max_order, validate};
 use stepdamp_sim::Profile;
 
 /// Arguments of `stepdamp identify`.
@@ -80,6 +82,11 @@ struct FitArgs {
     /// [servo] bandwidth_hz); only used for warnings.
     #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
     servo_bandwidth: Option<f64>,
+    /// How J is obtained: fit (always fitted), base (the --motor profile's) or auto
+    /// (fitted when the logs separate it — two speeds in both directions — and its 95 %
+    /// interval is narrow, else the base profile's). The decision is printed.
+    #[arg(long, default_value = "auto", value_parser = inertia_parser())]
+    inertia: InertiaMode,
     /// Name of the identified profile (default: base name + "-identified").
     #[arg(long)]
     name: Option<String>,
@@ -170,6 +177,13 @@ pub fn run(args: IdentifyArgs, global: &Global) -> Result<()> {
 }
 
 /// Parses a comma list of harmonic orders (1..=32, distinct).
+/// `--inertia`: the names of [`InertiaMode`], parsed by its `FromStr` (one home for them).
+fn inertia_parser() -> impl clap::builder::TypedValueParser<Value = InertiaMode> {
+    use clap::builder::TypedValueParser as _;
+    clap::builder::PossibleValuesParser::new(InertiaMode::ALL.map(InertiaMode::name))
+        .try_map(|s| s.parse::<InertiaMode>())
+}
+
 fn parse_orders(s: &str) -> Result<Vec<u16>> {
     let mut out: Vec<u16> = Vec::new();
     for part in s.split(',').map(str::trim) {
@@ -250,6 +264,7 @@ fn run_fit_cmd(a: FitArgs, _global: &Global) -> Result<()> {
     }
     let mut fo = FitOptions::for_profile(&base, &orders);
     fo.effort = effort;
+    fo.inertia = a.inertia;
     if let Some(bw) = a.servo_bandwidth {
         fo.servo_bandwidth_hz = Some(bw);
     }
@@ -268,6 +283,7 @@ fn run_fit_cmd(a: FitArgs, _global: &Global) -> Result<()> {
     let profile = model.apply_to(&base, Some(&name), &out_s).map_err(|e| anyhow!("{e}"))?;
     let rows: usize = logs.iter().map(RunLog::len).sum();
     out!("{}", fit_table(&f, &base.name));
+    let validation = decisions_and_validation(&f)?;
     if a.ff_on {
         let before = Model::of_profile(&base);
         outln!(
@@ -279,7 +295,7 @@ fn run_fit_cmd(a: FitArgs, _global: &Global) -> Result<()> {
     }
     outln!("{} logs, {rows} rows: read in {t_read:.3} s, fitted in {t_fit:.3} s", logs.len());
     if let Some(dir) = &a.report {
-        let written = write_report(dir, &f, None, &profile.name)?;
+        let written = write_report(dir, &f, None, Some(&validation), &profile.name)?;
         for w in written {
             outln!("wrote {}", w.display());
         }
@@ -287,6 +303,17 @@ fn run_fit_cmd(a: FitArgs, _global: &Global) -> Result<()> {
     write_atomic(out, profile.to_toml_string().as_bytes())?;
     outln!("wrote {out_s}");
     Ok(())
+}
+
+/// Prints the fit's decisions (which `J`, and why) and then its validation (per run, then
+/// the verdict), and returns the validation for the report.
+fn decisions_and_validation(f: &Fit) -> Result<Validation> {
+    for d in &f.decisions {
+        outln!("{d}");
+    }
+    let validation = validate(f, default_max_order(f));
+    outln!("validation (orders 1–{}):\n{validation}", validation.max_order);
+    Ok(validation)
 }
 
 fn check_output_dir(out: &Path) -> Result<()> {
@@ -454,6 +481,7 @@ fn simulate_and_identify(
     let fo = FitOptions::for_profile(&p.profile, orders);
     let f0 = fit(&logs, &fo)?;
     out!("{}", fit_table(&f0, &motor.name));
+    let validation = decisions_and_validation(&f0)?;
     let start = Model::from_fit(&f0);
     let ro = RefineOptions {
         max_iterations: a.iterations as usize,
@@ -471,7 +499,7 @@ fn simulate_and_identify(
         .apply_to(motor, Some(&default_name(motor, "identified")), &out.display().to_string())
         .map_err(|e| anyhow!("{e}"))?;
     if a.report {
-        for w in write_report(&a.out, &f0, Some((&r, p)), &profile.name)? {
+        for w in write_report(&a.out, &f0, Some((&r, p)), Some(&validation), &profile.name)? {
             outln!("wrote {}", w.display());
         }
     }
@@ -653,8 +681,13 @@ const MAX_PLOT_ORDER: usize = 16;
 /// Writes `spectrum.{svg,png}` and `residual.{svg,png}` into `dir` (atomically) and
 /// returns the paths. With a refinement, "after" is the feed-forward-on effort beyond the
 /// feed-forward; otherwise the fit's residual.
-fn write_report(dir: &Path, f: &Fit, refined: Option<(&Refinement, &Plan)>, title: &str) -> Result<Vec<PathBuf>> {
-    crate::plot::register_font();
+fn write_report(
+    dir: &Path,
+    f: &Fit,
+    refined: Option<(&Refinement, &Plan)>,
+    validation: Option<&Validation>,
+    title: &str,
+) -> Result<Vec<PathBuf>> {
     let mut files = AtomicFiles::in_dir(dir)?;
     let s = &f.samples;
     let before = order_spectrum(&s.theta_e_rad, &s.ripple_nm, MAX_PLOT_ORDER, 256);
@@ -678,32 +711,52 @@ fn write_report(dir: &Path, f: &Fit, refined: Option<(&Refinement, &Plan)>, titl
     let spec_png = dir.join("spectrum.png");
     let (t1, t2) = (files.stage(&spec_svg)?, files.stage(&spec_png)?);
     let stitle = format!("{title}: effort ripple by harmonic order");
-    {
-        let root = SVGBackend::new(&t1, (1000, 600)).into_drawing_area();
-        draw_spectrum(&root, &before, &after, after_label, &stitle)?;
-        root.present().map_err(|e| anyhow!("{}: {e}", spec_svg.display()))?;
-    }
-    {
-        let root = BitMapBackend::new(&t2, (1000, 600)).into_drawing_area();
-        draw_spectrum(&root, &before, &after, after_label, &stitle)?;
-        root.present().map_err(|e| anyhow!("{}: {e}", spec_png.display()))?;
-    }
+    let spectrum = Spectrum { before: &before, after: &after, after_label, title: &stitle };
+    crate::plot::render(&spectrum, (1000, 600), &t1, &t2)?;
     let res_svg = dir.join("residual.svg");
     let res_png = dir.join("residual.png");
     let (t3, t4) = (files.stage(&res_svg)?, files.stage(&res_png)?);
     let model = Model::from_fit(f);
     let rtitle = format!("{title}: needed torque and residual against electrical angle");
-    {
-        let root = SVGBackend::new(&t3, (1000, 700)).into_drawing_area();
-        draw_residual(&root, f, &model, &rtitle)?;
-        root.present().map_err(|e| anyhow!("{}: {e}", res_svg.display()))?;
-    }
-    {
-        let root = BitMapBackend::new(&t4, (1000, 700)).into_drawing_area();
-        draw_residual(&root, f, &model, &rtitle)?;
-        root.present().map_err(|e| anyhow!("{}: {e}", res_png.display()))?;
+    crate::plot::render(&Residual { fit: f, model: &model, title: &rtitle }, (1000, 700), &t3, &t4)?;
+    if let Some(validation) = validation {
+        let (svg, png) = (dir.join("validation.svg"), dir.join("validation.png"));
+        let (t5, t6) = (files.stage(&svg)?, files.stage(&png)?);
+        let vtitle = format!("{title}: effort ripple the model leaves unexplained, per run");
+        crate::plot::render(&crate::plot::ValidationFigure { validation, title: &vtitle }, (1000, 600), &t5, &t6)?;
     }
     files.commit()
+}
+
+struct Spectrum<'a> {
+    before: &'a [f64],
+    after: &'a [f64],
+    after_label: &'a str,
+    title: &'a str,
+}
+
+impl crate::plot::Figure for Spectrum<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
+    where
+        DB::ErrorType: 'static,
+    {
+        draw_spectrum(root, self.before, self.after, self.after_label, self.title)
+    }
+}
+
+struct Residual<'a> {
+    fit: &'a Fit,
+    model: &'a Model,
+    title: &'a str,
+}
+
+impl crate::plot::Figure for Residual<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
+    where
+        DB::ErrorType: 'static,
+    {
+        draw_residual(root, self.fit, self.model, self.title)
+    }
 }
 
 fn draw_spectrum<DB: DrawingBackend>(
