@@ -1,0 +1,166 @@
+//! `stepdamp identify` itself: the fit of run logs, its table, decisions and validation.
+
+use super::*;
+
+pub(super) fn run_fit_cmd(a: FitArgs, _global: &Global) -> Result<()> {
+    let Some(motor) = &a.motor else { bail!("--motor is needed: the base profile (preset or TOML) with Km, Nr, J") };
+    let Some(out) = &a.out else { bail!("--out is needed: where to write the identified profile (TOML)") };
+    if a.logs.is_empty() {
+        bail!("no --log given: pass the servo-mode run logs (CSV), e.g. --log a.csv --log b.csv");
+    }
+    let base = load_motor(motor)?;
+    let orders = parse_orders(&a.orders)?;
+    let effort = match a.effort.as_str() {
+        "measured" => Effort::MeasuredIq,
+        "command" => Effort::CommandIq,
+        e => bail!("--effort '{e}': expected measured or command"),
+    };
+    if let Some(bw) = a.servo_bandwidth
+        && !(bw.is_finite() && bw > 0.0)
+    {
+        bail!("--servo-bandwidth {bw}: must be a positive number of Hz");
+    }
+    check_output_dir(out)?;
+    let t0 = Instant::now();
+    let logs = read_logs(&a.logs, base.motor.pole_pairs)?;
+    let t_read = t0.elapsed().as_secs_f64();
+    for l in &logs {
+        if !l.ignored_columns.is_empty() {
+            outln!("note: {}: ignored unknown columns: {}", l.source, l.ignored_columns.join(", "));
+        }
+    }
+    let mut fo = FitOptions::for_profile(&base, &orders);
+    fo.effort = effort;
+    fo.inertia = a.inertia;
+    if let Some(bw) = a.servo_bandwidth {
+        fo.servo_bandwidth_hz = Some(bw);
+    }
+    if a.ff_on {
+        // Feed-forward-on logs: raw effort, J held at the base profile's (the one whose
+        // feed-forward ran, normally identified from feed-forward-off logs).
+        fo.correct_quantisation = false;
+        fo.smooth_effort = false;
+        fo.fit_inertia = false;
+    }
+    let f = fit(&logs, &fo)?;
+    let t_fit = t0.elapsed().as_secs_f64() - t_read;
+    let model = Model::from_fit(&f);
+    let name = a.name.clone().unwrap_or_else(|| default_name(&base, "identified"));
+    let out_s = out.display().to_string();
+    let profile = model.apply_to(&base, Some(&name), &out_s).map_err(|e| anyhow!("{e}"))?;
+    let rows: usize = logs.iter().map(RunLog::len).sum();
+    out!("{}", fit_table(&f, &base.name));
+    let validation = decisions_and_validation(&f)?;
+    if a.ff_on {
+        let before = Model::of_profile(&base);
+        outln!(
+            "feed-forward on: remaining ripple {:.3} mN·m RMS (the feed-forward of {} carried {:.3} mN·m RMS)",
+            1e3 * remaining_ripple_nm(&before, &f),
+            base.name,
+            1e3 * before.ripple_rms_nm()
+        );
+    }
+    outln!("{} logs, {rows} rows: read in {t_read:.3} s, fitted in {t_fit:.3} s", logs.len());
+    if let Some(dir) = &a.report {
+        let written = write_report(dir, &f, None, Some(&validation), &profile.name)?;
+        for w in written {
+            outln!("wrote {}", w.display());
+        }
+    }
+    write_atomic(out, profile.to_toml_string().as_bytes())?;
+    outln!("wrote {out_s}");
+    Ok(())
+}
+
+/// Prints the fit's decisions (which `J`, and why) and then its validation (per run, then
+/// the verdict), and returns the validation for the report.
+pub(super) fn decisions_and_validation(f: &Fit) -> Result<Validation> {
+    for d in &f.decisions {
+        outln!("{d}");
+    }
+    let validation = validate(f, default_max_order(f));
+    outln!("validation (orders 1–{}):\n{validation}", validation.max_order);
+    Ok(validation)
+}
+
+pub(super) fn check_output_dir(out: &Path) -> Result<()> {
+    let dir = out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    if !dir.is_dir() {
+        bail!("--out {}: directory {} does not exist", out.display(), dir.display());
+    }
+    if out.is_dir() {
+        bail!(
+            "--out {}: is a directory; give the profile's file name, e.g. {}",
+            out.display(),
+            out.join("identified.toml").display()
+        );
+    }
+    // Fail now, before any work or any report file, if the profile could not be written.
+    let probe = dir.join(format!(".stepdamp-write-test-{}", std::process::id()));
+    std::fs::write(&probe, b"")
+        .map_err(|e| anyhow!("--out {}: directory {} is not writable: {e}", out.display(), dir.display()))?;
+    let _ = std::fs::remove_file(&probe);
+    Ok(())
+}
+
+/// The printed table of a fit.
+pub(super) fn fit_table(f: &Fit, base: &str) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "identified from {} samples (base {base}); 95 % intervals", f.samples_used);
+    let _ = writeln!(s, "  order   amplitude mN·m       phase rad");
+    for h in &f.harmonics {
+        let _ = writeln!(
+            s,
+            "  {:>5}   {:8.3} ± {:<7.3}   {:+8.4} ± {:.4}",
+            h.order,
+            1e3 * h.amplitude_nm.value,
+            1e3 * h.amplitude_nm.ci95,
+            h.phase_rad.value,
+            h.phase_rad.ci95
+        );
+    }
+    let fs = f.coulomb_friction_nm;
+    let _ = writeln!(s, "  Fs   {:8.3} ± {:.3} mN·m", 1e3 * fs.value, 1e3 * fs.ci95);
+    match f.viscous_nm_s_per_rad {
+        Some(d) => {
+            let _ = writeln!(s, "  D    {:.4e} ± {:.1e} N·m·s/rad", d.value, d.ci95);
+        }
+        None => {
+            let _ = writeln!(s, "  D    {:.4e} N·m·s/rad (not separable: kept)", f.viscous_used);
+        }
+    }
+    match f.inertia_kg_m2 {
+        Some(j) => {
+            let _ =
+                writeln!(s, "  J    {:.4e} ± {:.1e} kg·m² (written to the profile's inertia_kg_m2)", j.value, j.ci95);
+        }
+        None => {
+            let _ = writeln!(s, "  J    {:.4e} kg·m² (held: the base profile's)", f.inertia_used);
+        }
+    }
+    if let Some(c) = f.offset_nm {
+        let _ = writeln!(
+            s,
+            "  constant torque {:.3} ± {:.3} mN·m (load or current offset; not in the profile)",
+            1e3 * c.value,
+            1e3 * c.ci95
+        );
+    }
+    let _ = writeln!(
+        s,
+        "  residual {:.3} mN·m RMS (fitted detent ripple {:.3} mN·m RMS)",
+        1e3 * f.residual_rms_nm,
+        1e3 * f.ripple_rms_nm
+    );
+    for r in &f.runs {
+        let _ = writeln!(
+            s,
+            "  run {}: {:+.4} rad/s, {:.1} electrical periods, {}/{} samples, J·dω/dt share {:.2}",
+            r.source, r.mean_speed_rad_s, r.electrical_periods, r.samples_used, r.samples, r.inertial_share
+        );
+    }
+    for w in &f.warnings {
+        let _ = writeln!(s, "warning: {w}");
+    }
+    s
+}
