@@ -49,8 +49,7 @@ pub(super) fn run_fit_cmd(a: FitArgs, _global: &Global) -> Result<()> {
     let out_s = out.display().to_string();
     let profile = model.apply_to(&base, Some(&name), &out_s).map_err(|e| anyhow!("{e}"))?;
     let rows: usize = logs.iter().map(RunLog::len).sum();
-    out!("{}", fit_table(&f, &base.name));
-    let validation = decisions_and_validation(&f)?;
+    let validation = print_fit_report(&f, &base.name)?;
     if a.ff_on {
         let before = Model::of_profile(&base);
         outln!(
@@ -72,15 +71,12 @@ pub(super) fn run_fit_cmd(a: FitArgs, _global: &Global) -> Result<()> {
     Ok(())
 }
 
-/// Prints the fit's decisions (which `J`, and why) and then its validation (per run, then
-/// the verdict), and returns the validation for the report.
-pub(super) fn decisions_and_validation(f: &Fit) -> Result<Validation> {
-    for d in &f.decisions {
-        outln!("{d}");
-    }
-    let validation = validate(f, default_max_order(f));
-    outln!("validation (orders 1–{}):\n{validation}", validation.max_order);
-    Ok(validation)
+/// Prints the fit's report ([`FitReport`]: the table, the warnings, the decisions — which
+/// `J`, and why — and the validation) and returns its validation for the plots.
+pub(super) fn print_fit_report(f: &Fit, base: &str) -> Result<Validation> {
+    let report = FitReport::new(base, f.clone());
+    outln!("{report}");
+    Ok(report.validation)
 }
 
 pub(super) fn check_output_dir(out: &Path) -> Result<()> {
@@ -101,66 +97,4 @@ pub(super) fn check_output_dir(out: &Path) -> Result<()> {
         .map_err(|e| anyhow!("--out {}: directory {} is not writable: {e}", out.display(), dir.display()))?;
     let _ = std::fs::remove_file(&probe);
     Ok(())
-}
-
-/// The printed table of a fit.
-pub(super) fn fit_table(f: &Fit, base: &str) -> String {
-    let mut s = String::new();
-    let _ = writeln!(s, "identified from {} samples (base {base}); 95 % intervals", f.samples_used);
-    let _ = writeln!(s, "  order   amplitude mN·m       phase rad");
-    for h in &f.harmonics {
-        let _ = writeln!(
-            s,
-            "  {:>5}   {:8.3} ± {:<7.3}   {:+8.4} ± {:.4}",
-            h.order,
-            1e3 * h.amplitude_nm.value,
-            1e3 * h.amplitude_nm.ci95,
-            h.phase_rad.value,
-            h.phase_rad.ci95
-        );
-    }
-    let fs = f.coulomb_friction_nm;
-    let _ = writeln!(s, "  Fs   {:8.3} ± {:.3} mN·m", 1e3 * fs.value, 1e3 * fs.ci95);
-    match f.viscous_nm_s_per_rad {
-        Some(d) => {
-            let _ = writeln!(s, "  D    {:.4e} ± {:.1e} N·m·s/rad", d.value, d.ci95);
-        }
-        None => {
-            let _ = writeln!(s, "  D    {:.4e} N·m·s/rad (not separable: kept)", f.viscous_used);
-        }
-    }
-    match f.inertia_kg_m2 {
-        Some(j) => {
-            let _ =
-                writeln!(s, "  J    {:.4e} ± {:.1e} kg·m² (written to the profile's inertia_kg_m2)", j.value, j.ci95);
-        }
-        None => {
-            let _ = writeln!(s, "  J    {:.4e} kg·m² (held: the base profile's)", f.inertia_used);
-        }
-    }
-    if let Some(c) = f.offset_nm {
-        let _ = writeln!(
-            s,
-            "  constant torque {:.3} ± {:.3} mN·m (load or current offset; not in the profile)",
-            1e3 * c.value,
-            1e3 * c.ci95
-        );
-    }
-    let _ = writeln!(
-        s,
-        "  residual {:.3} mN·m RMS (fitted detent ripple {:.3} mN·m RMS)",
-        1e3 * f.residual_rms_nm,
-        1e3 * f.ripple_rms_nm
-    );
-    for r in &f.runs {
-        let _ = writeln!(
-            s,
-            "  run {}: {:+.4} rad/s, {:.1} electrical periods, {}/{} samples, J·dω/dt share {:.2}",
-            r.source, r.mean_speed_rad_s, r.electrical_periods, r.samples_used, r.samples, r.inertial_share
-        );
-    }
-    for w in &f.warnings {
-        let _ = writeln!(s, "warning: {w}");
-    }
-    s
 }

@@ -18,14 +18,14 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use stepdamp_identify::conditions::InertiaMode;
-use stepdamp_identify::fit::{Effort, Fit, FitOptions, fit};
+use stepdamp_identify::fit::{Effort, Fit, FitOptions, FitReport, fit};
 use stepdamp_identify::log::{LogOptions, RunLog, read_log};
 use stepdamp_identify::model::Model;
 use stepdamp_identify::plan::{Plan, PlanOptions, plan, run_plan};
 use stepdamp_identify::refine::{PERIODIC_ORDERS, RefineOptions, Refinement, refine, remaining_ripple_nm, series_nm};
 use stepdamp_identify::spectrum::order_spectrum;
 use stepdamp_identify::static_curve::{TorqueSign, analyse, read_table};
-use stepdamp_identify::validation::{Validation, default_max_order, validate};
+use stepdamp_identify::validation::Validation;
 use stepdamp_sim::Profile;
 
 mod fit_cmd;

@@ -136,12 +136,14 @@
 mod design;
 mod options;
 mod prepare;
+mod report;
 mod result;
 mod solve;
 mod thresholds;
 mod warnings;
 
 pub use options::{Effort, FitOptions};
+pub use report::FitReport;
 pub use result::{Estimate, Fit, FitError, FitSamples, HarmonicEstimate, RunSummary, polar_with_ci, wrap_pi};
 pub use warnings::Warning;
 

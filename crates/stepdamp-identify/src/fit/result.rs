@@ -6,7 +6,7 @@ use crate::lsq::LsqError;
 use std::f64::consts::{PI, TAU};
 
 /// A value with its 95 % confidence half-width.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct Estimate {
     /// The value.
     pub value: f64,
@@ -15,7 +15,7 @@ pub struct Estimate {
 }
 
 /// One identified detent harmonic.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct HarmonicEstimate {
     /// Order `k`.
     pub order: u16,
@@ -30,7 +30,7 @@ pub struct HarmonicEstimate {
 }
 
 /// What a log contributed.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct RunSummary {
     /// Source name.
     pub source: String,
@@ -55,7 +55,7 @@ pub struct RunSummary {
 }
 
 /// Result of a fit.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Fit {
     /// Harmonics in the order asked for.
     pub harmonics: Vec<HarmonicEstimate>,
@@ -88,6 +88,7 @@ pub struct Fit {
     /// The samples used, for reports: electrical angle `Nr·θ_fb` (rad, wrapped to
     /// `[0, 2π)`), the torque the model explains (`Km·i − J·α` minus friction and `c`,
     /// N·m), and the residual (N·m).
+    #[serde(skip)]
     pub samples: FitSamples,
 }
 

@@ -7,7 +7,7 @@ use crate::lsq;
 use std::f64::consts::TAU;
 
 /// Why the data cannot fully separate the model's terms (the fit still ran).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub enum Warning {
     /// Few electrical periods in a direction.
     FewPeriods {
