@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use stepdamp_identify::conditions::InertiaMode;
-use stepdamp_identify::fit::{FitOptions, fit};
+use stepdamp_identify::fit::{FitOptions, FitReport, fit};
 use stepdamp_identify::log::{LogOptions, read_log};
 use stepdamp_identify::validation::{default_max_order, validate};
 use stepdamp_profile::Profile;
@@ -97,4 +97,50 @@ fn an_unknown_inertia_mode_is_refused_with_the_allowed_values() {
     assert!(!o.status.success());
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(e.contains("guess") && e.contains("fit") && e.contains("base") && e.contains("auto"), "{e}");
+}
+
+#[test]
+fn identify_format_json_is_the_library_fit_report_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let (csv, base) = logs(dir.path());
+    let mut args = vec!["identify".to_string()];
+    for c in &csv {
+        args.extend(["--log".to_string(), c.display().to_string()]);
+    }
+    let out = dir.path().join("id.toml");
+    args.extend(
+        ["--motor", base.to_str().unwrap(), "--out", out.to_str().unwrap(), "--format", "json"].map(String::from),
+    );
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let text = String::from_utf8(stepdamp(&args).stdout).unwrap();
+    assert_eq!(text.lines().count(), 1, "one line of JSON: {text}");
+    assert!(out.exists(), "the profile is written with --format json too");
+    let got: serde_json::Value = serde_json::from_str(&text).unwrap();
+
+    let profile = Profile::from_file(&base).unwrap();
+    let opts = LogOptions::new(profile.motor.pole_pairs);
+    let logs: Vec<_> = csv.iter().map(|p| read_log(p, &opts).unwrap()).collect();
+    let f = fit(&logs, &FitOptions::for_profile(&profile, &[1, 2, 4])).unwrap();
+    let want = serde_json::to_value(FitReport::new(&profile.name, f)).unwrap();
+    assert_close(&got, &want);
+}
+
+/// Equal, numbers to the last digit or two (serde_json's default parser rounds the last bit).
+fn assert_close(got: &serde_json::Value, want: &serde_json::Value) {
+    use serde_json::Value;
+    match (got, want) {
+        (Value::Number(a), Value::Number(b)) => {
+            let (a, b) = (a.as_f64().unwrap(), b.as_f64().unwrap());
+            assert!((a - b).abs() <= 1e-14 * a.abs().max(b.abs()), "{a} vs {b}");
+        }
+        (Value::Array(a), Value::Array(b)) => {
+            assert_eq!(a.len(), b.len(), "{got} vs {want}");
+            a.iter().zip(b).for_each(|(x, y)| assert_close(x, y));
+        }
+        (Value::Object(a), Value::Object(b)) => {
+            assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
+            a.iter().for_each(|(k, x)| assert_close(x, &b[k]));
+        }
+        _ => assert_eq!(got, want),
+    }
 }

@@ -21,11 +21,14 @@ pub(super) fn run_fit_cmd(a: FitArgs, _global: &Global) -> Result<()> {
         bail!("--servo-bandwidth {bw}: must be a positive number of Hz");
     }
     check_output_dir(out)?;
+    // With --format json stdout is the report's JSON alone (one line); the files are written
+    // all the same.
+    let text = a.format == Format::Text;
     let t0 = Instant::now();
     let logs = read_logs(&a.logs, base.motor.pole_pairs)?;
     let t_read = t0.elapsed().as_secs_f64();
     for l in &logs {
-        if !l.ignored_columns.is_empty() {
+        if text && !l.ignored_columns.is_empty() {
             outln!("note: {}: ignored unknown columns: {}", l.source, l.ignored_columns.join(", "));
         }
     }
@@ -49,8 +52,8 @@ pub(super) fn run_fit_cmd(a: FitArgs, _global: &Global) -> Result<()> {
     let out_s = out.display().to_string();
     let profile = model.apply_to(&base, Some(&name), &out_s).map_err(|e| anyhow!("{e}"))?;
     let rows: usize = logs.iter().map(RunLog::len).sum();
-    let validation = print_fit_report(&f, &base.name)?;
-    if a.ff_on {
+    let validation = print_fit_report(&f, &base.name, a.format)?;
+    if a.ff_on && text {
         let before = Model::of_profile(&base);
         outln!(
             "feed-forward on: remaining ripple {:.3} mN·m RMS (the feed-forward of {} carried {:.3} mN·m RMS)",
@@ -59,23 +62,30 @@ pub(super) fn run_fit_cmd(a: FitArgs, _global: &Global) -> Result<()> {
             1e3 * before.ripple_rms_nm()
         );
     }
-    outln!("{} logs, {rows} rows: read in {t_read:.3} s, fitted in {t_fit:.3} s", logs.len());
+    if text {
+        outln!("{} logs, {rows} rows: read in {t_read:.3} s, fitted in {t_fit:.3} s", logs.len());
+    }
     if let Some(dir) = &a.report {
         let written = write_report(dir, &f, None, Some(&validation), &profile.name)?;
-        for w in written {
+        for w in written.iter().filter(|_| text) {
             outln!("wrote {}", w.display());
         }
     }
     write_atomic(out, profile.to_toml_string().as_bytes())?;
-    outln!("wrote {out_s}");
+    if text {
+        outln!("wrote {out_s}");
+    }
     Ok(())
 }
 
 /// Prints the fit's report ([`FitReport`]: the table, the warnings, the decisions — which
 /// `J`, and why — and the validation) and returns its validation for the plots.
-pub(super) fn print_fit_report(f: &Fit, base: &str) -> Result<Validation> {
+pub(super) fn print_fit_report(f: &Fit, base: &str, format: Format) -> Result<Validation> {
     let report = FitReport::new(base, f.clone());
-    outln!("{report}");
+    match format {
+        Format::Text => outln!("{report}"),
+        Format::Json => print_json(&report)?,
+    }
     Ok(report.validation)
 }
 

@@ -9,7 +9,7 @@
 //! ```
 
 use crate::Global;
-use crate::common::{AtomicFiles, load_motor, progress, write_atomic};
+use crate::common::{AtomicFiles, Format, load_motor, print_json, progress, write_atomic};
 use anyhow::{Result, anyhow, bail};
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -95,6 +95,10 @@ struct FitArgs {
     /// interval is narrow, else the base profile's). The decision is printed.
     #[arg(long, default_value = "auto", value_parser = inertia_parser())]
     inertia: InertiaMode,
+    /// text, or json: the fit's report (stepdamp_identify::fit::FitReport) as one line of
+    /// JSON on stdout, nothing else (the files are written the same).
+    #[arg(long, value_enum, default_value_t)]
+    format: Format,
     /// Name of the identified profile (default: base name + "-identified").
     #[arg(long)]
     name: Option<String>,

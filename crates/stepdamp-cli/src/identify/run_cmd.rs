@@ -84,7 +84,7 @@ pub(super) fn simulate_and_identify(
     let logs = read_logs(&done.files, motor.motor.pole_pairs)?;
     let fo = FitOptions::for_profile(&p.profile, orders);
     let f0 = fit(&logs, &fo)?;
-    let validation = print_fit_report(&f0, &motor.name)?;
+    let validation = print_fit_report(&f0, &motor.name, Format::Text)?;
     let start = Model::from_fit(&f0);
     let ro = RefineOptions {
         max_iterations: a.iterations as usize,
