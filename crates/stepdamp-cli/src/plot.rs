@@ -5,6 +5,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
 use std::sync::Once;
+use stepdamp_identify::validation::Validation;
 use stepdamp_sim::SweepRow;
 
 static FONT: Once = Once::new();
@@ -30,18 +31,113 @@ pub struct Marker {
 const PALETTE: [RGBColor; 4] =
     [RGBColor(200, 40, 40), RGBColor(30, 90, 200), RGBColor(20, 150, 60), RGBColor(150, 60, 170)];
 
-/// Writes the sweep plot as SVG and PNG.
-pub fn sweep_plot(rows: &[SweepRow], markers: &[Marker], title: &str, svg: &Path, png: &Path) -> Result<()> {
+/// A figure that can be drawn on any plotters backend.
+pub trait Figure {
+    /// Draws the whole figure on `root`.
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
+    where
+        DB::ErrorType: 'static;
+}
+
+/// The one render path: draws `fig` into `svg` and `png` (pixels `size`), each presented
+/// and its error naming the file.
+pub fn render(fig: &impl Figure, size: (u32, u32), svg: &Path, png: &Path) -> Result<()> {
     register_font();
     {
-        let root = SVGBackend::new(svg, (1000, 700)).into_drawing_area();
-        draw_sweep(&root, rows, markers, title)?;
+        let root = SVGBackend::new(svg, size).into_drawing_area();
+        fig.draw(&root)?;
         root.present().map_err(|e| anyhow!("{}: {e}", svg.display()))?;
     }
-    let root = BitMapBackend::new(png, (1000, 700)).into_drawing_area();
-    draw_sweep(&root, rows, markers, title)?;
+    let root = BitMapBackend::new(png, size).into_drawing_area();
+    fig.draw(&root)?;
     root.present().map_err(|e| anyhow!("{}: {e}", png.display()))?;
     Ok(())
+}
+
+struct Sweep<'a> {
+    rows: &'a [SweepRow],
+    markers: &'a [Marker],
+    title: &'a str,
+}
+
+impl Figure for Sweep<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
+    where
+        DB::ErrorType: 'static,
+    {
+        draw_sweep(root, self.rows, self.markers, self.title)
+    }
+}
+
+/// Writes the sweep plot as SVG and PNG.
+pub fn sweep_plot(rows: &[SweepRow], markers: &[Marker], title: &str, svg: &Path, png: &Path) -> Result<()> {
+    render(&Sweep { rows, markers, title }, (1000, 700), svg, png)
+}
+
+/// The validation of a fit ([`stepdamp_identify::validation`]): per run, the effort ripple
+/// the model leaves unexplained at each order, as grouped bars (mN·m, log scale).
+pub struct ValidationFigure<'a> {
+    /// The validation.
+    pub validation: &'a Validation,
+    /// Title.
+    pub title: &'a str,
+}
+
+impl Figure for ValidationFigure<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()>
+    where
+        DB::ErrorType: 'static,
+    {
+        let err = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow!("plot: {e}");
+        root.fill(&WHITE).map_err(err)?;
+        let v = self.validation;
+        let max_order = f64::from(v.max_order);
+        let values = || v.runs.iter().flat_map(|r| r.unexplained.iter().map(|o| 1e3 * o.amplitude_nm));
+        let positive = || values().filter(|x| x.is_finite() && *x > 0.0);
+        let top = positive().fold(1e-6, f64::max) * 2.0;
+        let floor = positive().fold(top, f64::min).max(top * 1e-5) / 2.0;
+        let mut chart = ChartBuilder::on(root)
+            .caption(self.title, ("sans-serif", 20))
+            .margin(14)
+            .x_label_area_size(40)
+            .y_label_area_size(80)
+            .build_cartesian_2d(0.5f64..max_order + 0.5, (floor..top).log_scale())
+            .map_err(err)?;
+        chart
+            .configure_mesh()
+            .x_desc("harmonic order k of the electrical angle")
+            .y_desc("unexplained effort ripple (mN·m)")
+            .x_labels(usize::from(v.max_order))
+            .x_label_formatter(&|x| format!("{x:.0}"))
+            .y_label_formatter(&|y| format!("{y:.1e}"))
+            .label_style(("sans-serif", 14))
+            .draw()
+            .map_err(err)?;
+        let n = v.runs.len().max(1) as f64;
+        let width = 0.76 / n;
+        for (ri, run) in v.runs.iter().enumerate() {
+            let color = PALETTE[ri % PALETTE.len()];
+            let x_off = -0.38 + width * ri as f64;
+            chart
+                .draw_series(run.unexplained.iter().map(|o| {
+                    let k = f64::from(o.order);
+                    let y = (1e3 * o.amplitude_nm).max(floor);
+                    Rectangle::new([(k + x_off, floor), (k + x_off + width * 0.9, y)], color.filled())
+                }))
+                .map_err(err)?
+                .label(format!("{}: explains {:.1} %", run.source, 100.0 * run.explained_share))
+                .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 14, y + 5)], color.filled()));
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK.mix(0.3))
+            .label_font(("sans-serif", 14))
+            .draw()
+            .map_err(err)?;
+        Ok(())
+    }
 }
 
 fn draw_sweep<DB: DrawingBackend>(

@@ -199,7 +199,7 @@ pub fn inertia_choice(fit_allowed: bool, mode: InertiaMode, speeds_rad_s: &[f64]
 }
 
 /// Which `J` was used and why.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub enum Decision {
     /// `J` fitted.
     InertiaFitted {
@@ -238,7 +238,7 @@ impl std::fmt::Display for Decision {
 }
 
 /// A condition of the logs that weakens a term (a warning of the fit).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub enum Condition {
     /// Slow runs left out: their friction is short of the fastest runs'.
     SlowRunsLeftOut {

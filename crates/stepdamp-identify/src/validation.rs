@@ -100,8 +100,7 @@ fn one(source: &str, theta_e: &[f64], ripple: &[f64], residual: &[f64], max_orde
 /// zeros when the system cannot be solved (too few samples or angles).
 fn amplitudes(theta_e: &[f64], y: &[f64], max_order: u16) -> Vec<f64> {
     let m = 2 * usize::from(max_order) + 1;
-    let mut ata = nalgebra::DMatrix::<f64>::zeros(m, m);
-    let mut atb = nalgebra::DVector::<f64>::zeros(m);
+    let mut design = crate::lsq::Design::new(m);
     let mut row = vec![0.0; m];
     for (&te, &v) in theta_e.iter().zip(y) {
         let (s1, c1) = te.sin_cos();
@@ -113,24 +112,12 @@ fn amplitudes(theta_e: &[f64], y: &[f64], max_order: u16) -> Vec<f64> {
             (s, c) = (s * c1 + c * s1, c * c1 - s * s1);
         }
         row[m - 1] = 1.0;
-        for a in 0..m {
-            atb[a] += row[a] * v;
-            for b in a..m {
-                ata[(a, b)] += row[a] * row[b];
-            }
-        }
+        // One block: only the coefficients are used, not their covariance.
+        design.push(&row, v, 0);
     }
-    for a in 0..m {
-        for b in 0..a {
-            ata[(a, b)] = ata[(b, a)];
-        }
-    }
-    match ata.cholesky() {
-        Some(ch) => {
-            let x = ch.solve(&atb);
-            (0..usize::from(max_order)).map(|k| x[2 * k].hypot(x[2 * k + 1])).collect()
-        }
-        None => vec![0.0; usize::from(max_order)],
+    match crate::lsq::solve(&design) {
+        Ok(sol) => (0..usize::from(max_order)).map(|k| sol.beta[2 * k].hypot(sol.beta[2 * k + 1])).collect(),
+        Err(_) => vec![0.0; usize::from(max_order)],
     }
 }
 

@@ -1,0 +1,146 @@
+//! `identify` (the fit) prints the fit's decisions and its validation exactly as the library
+//! computes them, honours `--inertia`, and `--report` plots the validation.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use stepdamp_identify::conditions::InertiaMode;
+use stepdamp_identify::fit::{FitOptions, FitReport, fit};
+use stepdamp_identify::log::{LogOptions, read_log};
+use stepdamp_identify::validation::{default_max_order, validate};
+use stepdamp_profile::Profile;
+
+fn stepdamp(args: &[&str]) -> Output {
+    let o = Command::new(env!("CARGO_BIN_EXE_stepdamp")).args(args).output().expect("runs");
+    assert!(o.status.success(), "{args:?}: {}", String::from_utf8_lossy(&o.stderr));
+    o
+}
+
+/// Simulated logs of the plan for patent-motor (short runs) and the profile they were
+/// recorded with.
+fn logs(dir: &Path) -> (Vec<PathBuf>, PathBuf) {
+    let out = dir.join("runs");
+    let o = out.to_str().unwrap();
+    stepdamp(&["--quiet", "identify", "run", "--motor", "patent-motor", "--periods", "5", "--out", o]);
+    let mut csv: Vec<PathBuf> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "csv"))
+        .collect();
+    csv.sort();
+    (csv, out.join("base.toml"))
+}
+
+/// What the library says for these logs with `--inertia mode`: the decisions, then the
+/// validation (its `Display`).
+fn library_lines(csv: &[PathBuf], base: &Path, mode: InertiaMode) -> (Vec<String>, String) {
+    let base = Profile::from_file(base).unwrap();
+    let opts = LogOptions::new(base.motor.pole_pairs);
+    let logs: Vec<_> = csv.iter().map(|p| read_log(p, &opts).unwrap()).collect();
+    let mut fo = FitOptions::for_profile(&base, &[1, 2, 4]);
+    fo.inertia = mode;
+    let f = fit(&logs, &fo).unwrap();
+    let decisions = f.decisions.iter().map(ToString::to_string).collect();
+    (decisions, validate(&f, default_max_order(&f)).to_string())
+}
+
+#[test]
+fn the_fit_prints_its_decisions_then_the_library_validation_and_honours_inertia() {
+    let dir = tempfile::tempdir().unwrap();
+    let (csv, base) = logs(dir.path());
+    assert!(csv.len() >= 2, "{csv:?}");
+    for mode in InertiaMode::ALL {
+        let mut args = vec!["identify".to_string()];
+        for c in &csv {
+            args.extend(["--log".to_string(), c.display().to_string()]);
+        }
+        let out = dir.path().join(format!("id-{}.toml", mode.name()));
+        args.extend(
+            ["--motor", base.to_str().unwrap(), "--out", out.to_str().unwrap(), "--inertia", mode.name()]
+                .map(String::from),
+        );
+        let report = dir.path().join(format!("report-{}", mode.name()));
+        if mode == InertiaMode::Auto {
+            args.extend(["--report".to_string(), report.display().to_string()]);
+        }
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let text = String::from_utf8(stepdamp(&args).stdout).unwrap();
+        let (decisions, validation) = library_lines(&csv, &base, mode);
+        assert!(!decisions.is_empty());
+        let mut expected = decisions.join("\n");
+        expected.push('\n');
+        expected.push_str(&format!("validation (orders 1–8):\n{validation}\n"));
+        assert!(text.contains(&expected), "{mode:?}: want\n{expected}\nin\n{text}");
+        if mode == InertiaMode::Base {
+            assert!(
+                text.contains("J held at the base profile's") && text.contains("as asked (--inertia base)"),
+                "{text}"
+            );
+        }
+        if mode == InertiaMode::Fit {
+            assert!(text.contains("J fitted") && text.contains("as asked (--inertia fit)"), "{text}");
+        }
+        if mode == InertiaMode::Auto {
+            for f in ["validation.svg", "validation.png"] {
+                let len = std::fs::metadata(report.join(f)).map(|m| m.len()).unwrap_or(0);
+                assert!(len > 1000, "{f}: {len} bytes");
+            }
+        }
+    }
+}
+
+#[test]
+fn an_unknown_inertia_mode_is_refused_with_the_allowed_values() {
+    let o = Command::new(env!("CARGO_BIN_EXE_stepdamp"))
+        .args(["identify", "--log", "x.csv", "--motor", "patent-motor", "--out", "y.toml", "--inertia", "guess"])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("guess") && e.contains("fit") && e.contains("base") && e.contains("auto"), "{e}");
+}
+
+#[test]
+fn identify_format_json_is_the_library_fit_report_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let (csv, base) = logs(dir.path());
+    let mut args = vec!["identify".to_string()];
+    for c in &csv {
+        args.extend(["--log".to_string(), c.display().to_string()]);
+    }
+    let out = dir.path().join("id.toml");
+    args.extend(
+        ["--motor", base.to_str().unwrap(), "--out", out.to_str().unwrap(), "--format", "json"].map(String::from),
+    );
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let text = String::from_utf8(stepdamp(&args).stdout).unwrap();
+    assert_eq!(text.lines().count(), 1, "one line of JSON: {text}");
+    assert!(out.exists(), "the profile is written with --format json too");
+    let got: serde_json::Value = serde_json::from_str(&text).unwrap();
+
+    let profile = Profile::from_file(&base).unwrap();
+    let opts = LogOptions::new(profile.motor.pole_pairs);
+    let logs: Vec<_> = csv.iter().map(|p| read_log(p, &opts).unwrap()).collect();
+    let f = fit(&logs, &FitOptions::for_profile(&profile, &[1, 2, 4])).unwrap();
+    let want = serde_json::to_value(FitReport::new(&profile.name, f)).unwrap();
+    assert_close(&got, &want);
+}
+
+/// Equal, numbers to the last digit or two (serde_json's default parser rounds the last bit).
+fn assert_close(got: &serde_json::Value, want: &serde_json::Value) {
+    use serde_json::Value;
+    match (got, want) {
+        (Value::Number(a), Value::Number(b)) => {
+            let (a, b) = (a.as_f64().unwrap(), b.as_f64().unwrap());
+            assert!((a - b).abs() <= 1e-14 * a.abs().max(b.abs()), "{a} vs {b}");
+        }
+        (Value::Array(a), Value::Array(b)) => {
+            assert_eq!(a.len(), b.len(), "{got} vs {want}");
+            a.iter().zip(b).for_each(|(x, y)| assert_close(x, y));
+        }
+        (Value::Object(a), Value::Object(b)) => {
+            assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
+            a.iter().for_each(|(k, x)| assert_close(x, &b[k]));
+        }
+        _ => assert_eq!(got, want),
+    }
+}
