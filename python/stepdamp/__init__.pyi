@@ -6,7 +6,10 @@ import numpy as np
 from ._native import PRESETS as PRESETS, Profile as Profile, StepdampError as StepdampError
 from .studies import StudyResult as StudyResult, load_spec as load_spec, study as study
 
-class SweepSummary(dict): ...
+class SweepSummary(Dict[str, Any]):
+    """The library's sweep summary (the CLI's ``sweep --format json``); ``str()`` is the CLI's text."""
+
+    def __init__(self, data: Dict[str, Any], text: str = ...) -> None: ...
 
 def simulate(
     profile: Profile,
