@@ -23,6 +23,12 @@ pub(crate) fn compensation(s: &str) -> PyResult<Compensation> {
     s.parse().map_err(|e| err(format!("compensation '{s}': {e}")))
 }
 
+/// Simulation options; `substeps` `None` is the library's default (as the CLI's).
+fn options(substeps: Option<u32>, current_noise_a: f64, seed: u64, load_torque_nm: f64) -> SimOptions {
+    let d = SimOptions::default();
+    SimOptions { substeps: substeps.unwrap_or(d.substeps), current_noise_a, seed, load_torque_nm, ..d }
+}
+
 /// The controller's profile: `controller` or the motor's own, checked for the same hardware.
 fn controller_of(motor: &Profile, controller: Option<&PyProfile>) -> PyResult<Profile> {
     match controller {
@@ -43,7 +49,7 @@ fn column<'py>(py: Python<'py>, d: &Bound<'py, PyDict>, name: &str, v: Vec<f64>)
 /// columns as numpy arrays (one row per control period) and the velocity-error metrics.
 #[pyfunction]
 #[pyo3(signature = (profile, mode = "open-loop", compensation = "patent", speed_rad_s = 10.0, duration_s = 1.5, *,
-    controller = None, dwell_s = 0.05, ramp_s = 0.1, load_torque_nm = 0.0, current_noise_a = 0.0, substeps = 2, seed = 1))]
+    controller = None, dwell_s = 0.05, ramp_s = 0.1, load_torque_nm = 0.0, current_noise_a = 0.0, substeps = None, seed = 1))]
 #[allow(clippy::too_many_arguments)]
 pub fn simulate<'py>(
     py: Python<'py>,
@@ -57,7 +63,7 @@ pub fn simulate<'py>(
     ramp_s: f64,
     load_torque_nm: f64,
     current_noise_a: f64,
-    substeps: u32,
+    substeps: Option<u32>,
     seed: u64,
 ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
     let motor = profile.inner.clone();
@@ -68,7 +74,7 @@ pub fn simulate<'py>(
     let pwm = motor.drive.pwm_hz;
     let nr = motor.motor.pole_pairs;
     spec.check(pwm, nr).map_err(err)?;
-    let opts = SimOptions { substeps, current_noise_a, seed, load_torque_nm, ..SimOptions::default() };
+    let opts = options(substeps, current_noise_a, seed, load_torque_nm);
     let mut lp = ClosedLoop::new(&motor, &ctrl, mode, comp, &opts).map_err(err)?;
     let n = (duration_s * pwm).round() as usize;
     let (cols, m) = py
@@ -119,7 +125,7 @@ pub fn linear_grid(from_rad_s: f64, to_rad_s: f64, points: usize) -> Vec<f64> {
 /// library's `SweepSummary` as JSON (the CLI's `--format json`) and as the CLI's text.
 #[pyfunction]
 #[pyo3(signature = (profile, modes, compensations, speeds_rad_s, *, controller = None, duration_s = 1.5,
-    load_torque_nm = 0.0, current_noise_a = 0.0, substeps = 2, seed = 1))]
+    load_torque_nm = 0.0, current_noise_a = 0.0, substeps = None, seed = 1))]
 #[allow(clippy::too_many_arguments)]
 pub fn sweep<'py>(
     py: Python<'py>,
@@ -131,7 +137,7 @@ pub fn sweep<'py>(
     duration_s: f64,
     load_torque_nm: f64,
     current_noise_a: f64,
-    substeps: u32,
+    substeps: Option<u32>,
     seed: u64,
 ) -> PyResult<(Bound<'py, PyDict>, String, String)> {
     let motor = profile.inner.clone();
@@ -147,7 +153,7 @@ pub fn sweep<'py>(
             duration_s,
             window_s: (duration_s / 3.0).min(0.5),
         },
-        options: SimOptions { substeps, current_noise_a, seed, load_torque_nm, ..SimOptions::default() },
+        options: options(substeps, current_noise_a, seed, load_torque_nm),
     };
     let rows = py.allow_threads(|| stepdamp_sim::sweep(&motor, &ctrl, &spec, &|| {})).map_err(err)?;
     let t = PyDict::new(py);

@@ -65,7 +65,7 @@ def simulate(
     ramp_s: float = 0.1,
     load_torque_nm: float = 0.0,
     current_noise_a: float = 0.0,
-    substeps: int = 2,
+    substeps: Union[int, None] = None,
     seed: int = 1,
     as_frame: Union[bool, None] = None,
     return_metrics: bool = False,
@@ -77,6 +77,8 @@ def simulate(
     which only the CLI's ``sweep --table`` takes). The run holds the motor at standstill for ``dwell_s``,
     ramps to ``speed_rad_s`` (rad/s) in ``ramp_s`` and runs to ``duration_s`` (s).
     ``controller`` is the profile the controller believes in (default: ``profile``).
+    ``substeps``: RK4 steps of the plant per PWM period (``None``: the library's default,
+    as the CLI's).
 
     Returns the run log, one row per control period, columns ``t_s``, ``theta_cmd_rad``,
     ``theta_fb_rad``, ``omega_fb_rad_s``, ``i_a_a``, ``i_b_a``, ``i_d_a``, ``i_q_a``,
@@ -140,7 +142,7 @@ def sweep(
     duration_s: float = 1.5,
     load_torque_nm: float = 0.0,
     current_noise_a: float = 0.0,
-    substeps: int = 2,
+    substeps: Union[int, None] = None,
     seed: int = 1,
     as_frame: Union[bool, None] = None,
 ):
@@ -149,7 +151,8 @@ def sweep(
     ``modes``: ``open-loop``, ``servo``; ``compensations``: ``off``, ``patent``,
     ``estimated``, ``angle`` (a list or a comma-separated string; ``table`` needs the CLI's
     ``--table`` file). ``speeds_rad_s`` defaults to the CLI's grid, ``linear_grid(1, 40,
-    60)``. Returns
+    60)``. ``substeps``: RK4 steps per PWM period (``None``: the library's default, as the
+    CLI's). Returns
     ``(table, summary)``: the sweep table (columns ``mode``, ``compensation``,
     ``speed_cmd_rad_s``, ``vel_err_rms_rad_s``, ``vel_err_pp_rad_s``, ``lost_sync``; the CLI's
     ``sweep.csv``) and a :class:`SweepSummary`.

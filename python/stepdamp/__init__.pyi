@@ -23,7 +23,7 @@ def simulate(
     ramp_s: float = 0.1,
     load_torque_nm: float = 0.0,
     current_noise_a: float = 0.0,
-    substeps: int = 2,
+    substeps: Optional[int] = None,
     seed: int = 1,
     as_frame: Optional[bool] = None,
     return_metrics: bool = False,
@@ -39,7 +39,7 @@ def sweep(
     duration_s: float = 1.5,
     load_torque_nm: float = 0.0,
     current_noise_a: float = 0.0,
-    substeps: int = 2,
+    substeps: Optional[int] = None,
     seed: int = 1,
     as_frame: Optional[bool] = None,
 ) -> Tuple[Any, SweepSummary]: ...

@@ -79,7 +79,7 @@ def simulate(
     ramp_s: float = 0.1,
     load_torque_nm: float = 0.0,
     current_noise_a: float = 0.0,
-    substeps: int = 2,
+    substeps: Optional[int] = None,
     seed: int = 1,
 ) -> Tuple[Dict[str, npt.NDArray[np.float64]], Dict[str, Any]]: ...
 def linear_grid(from_rad_s: float, to_rad_s: float, points: int) -> List[float]: ...
@@ -93,7 +93,7 @@ def sweep(
     duration_s: float = 1.5,
     load_torque_nm: float = 0.0,
     current_noise_a: float = 0.0,
-    substeps: int = 2,
+    substeps: Optional[int] = None,
     seed: int = 1,
 ) -> Tuple[Dict[str, Any], str, str]:
     """(table columns, SweepSummary as JSON, SweepSummary as the CLI's text)."""
