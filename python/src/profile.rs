@@ -5,7 +5,7 @@ use crate::err;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use stepdamp_sim::Profile;
-use stepdamp_sim::profile::{DetentTerm, TopologyName};
+use stepdamp_sim::profile::{DetentTerm, ProfileData, TopologyName};
 
 /// A motor profile: motor, drive, encoder and servo settings (SI units; attribute names
 /// carry them). `Profile.preset(name)`, `Profile.load(path)`, `Profile.from_toml(text)`;
@@ -18,11 +18,11 @@ pub struct PyProfile {
 }
 
 impl PyProfile {
-    fn set(&mut self, f: impl FnOnce(&mut Profile)) -> PyResult<()> {
-        let mut p = self.inner.clone();
-        f(&mut p);
-        p.validate(&p.name.clone()).map_err(err)?;
-        self.inner = p;
+    /// Applies `f` to a copy of the keys and validates it again (the profile's name names
+    /// it in errors); on error the profile is unchanged.
+    fn set(&mut self, f: impl FnOnce(&mut ProfileData)) -> PyResult<()> {
+        let origin = self.inner.name.clone();
+        self.inner = self.inner.edited(&origin, f).map_err(err)?;
         Ok(())
     }
 }
@@ -72,10 +72,11 @@ impl PyProfile {
     fn preset(name: &str) -> PyResult<Self> {
         Profile::preset(name)
             .map(|inner| PyProfile { inner })
-            .ok_or_else(|| err(stepdamp_sim::ProfileError::Unknown(name.to_string())))
+            .ok_or_else(|| err(stepdamp_sim::ProfileError::Unknown { name: name.to_string(), file_exists: false }))
     }
 
-    /// Reads and validates a TOML profile file (or a preset name, as the CLI's `--motor`).
+    /// Reads and validates a TOML profile file, or a preset name, as the CLI's `--motor`: a
+    /// name with a `/` or ending in `.toml` is a file, a bare name a preset.
     #[staticmethod]
     fn load(path: std::path::PathBuf) -> PyResult<Self> {
         let s = path.to_string_lossy().into_owned();
@@ -101,8 +102,8 @@ impl PyProfile {
     }
 
     #[setter]
-    fn set_name(&mut self, name: String) {
-        self.inner.name = name;
+    fn set_name(&mut self, name: String) -> PyResult<()> {
+        self.set(|p| p.name = name)
     }
 
     /// Power stage: `"three-leg"` or `"two-h-bridge"`.

@@ -6,20 +6,27 @@ use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use stepdamp_core::Mode;
-use stepdamp_sim::runlog::LogRow;
+use stepdamp_sim::runlog::{FromRecord, LogRow};
 use stepdamp_sim::{
-    ClosedLoop, Compensation, Profile, RunSpec, SimOptions, SweepRow, SweepSpec, check_mode_compensation,
+    ClosedLoop, Compensation, Profile, RunSpec, SimOptions, SweepSpec, SweepSummary, check_mode_compensation,
     check_same_hardware, run,
 };
-use stepdamp_study::run::{peak_pp, reduction};
-use stepdamp_study::spec::{parse_compensation, parse_mode};
 
+/// A mode by the core's name (`Mode::name`: `open-loop`, `servo`).
 pub(crate) fn mode(s: &str) -> PyResult<Mode> {
-    parse_mode(s).ok_or_else(|| err(format!("mode '{s}': expected open-loop or servo")))
+    s.parse().map_err(|e| err(format!("mode '{s}': {e}")))
 }
 
+/// A compensation by the core's name (`Compensation::name`: `off`, `patent`, `estimated`,
+/// `angle`, `table`).
 pub(crate) fn compensation(s: &str) -> PyResult<Compensation> {
-    parse_compensation(s).ok_or_else(|| err(format!("compensation '{s}': expected off, patent or estimated")))
+    s.parse().map_err(|e| err(format!("compensation '{s}': {e}")))
+}
+
+/// Simulation options; `substeps` `None` is the library's default (as the CLI's).
+fn options(substeps: Option<u32>, current_noise_a: f64, seed: u64, load_torque_nm: f64) -> SimOptions {
+    let d = SimOptions::default();
+    SimOptions { substeps: substeps.unwrap_or(d.substeps), current_noise_a, seed, load_torque_nm, ..d }
 }
 
 /// The controller's profile: `controller` or the motor's own, checked for the same hardware.
@@ -42,7 +49,7 @@ fn column<'py>(py: Python<'py>, d: &Bound<'py, PyDict>, name: &str, v: Vec<f64>)
 /// columns as numpy arrays (one row per control period) and the velocity-error metrics.
 #[pyfunction]
 #[pyo3(signature = (profile, mode = "open-loop", compensation = "patent", speed_rad_s = 10.0, duration_s = 1.5, *,
-    controller = None, dwell_s = 0.05, ramp_s = 0.1, load_torque_nm = 0.0, current_noise_a = 0.0, substeps = 2, seed = 1))]
+    controller = None, dwell_s = 0.05, ramp_s = 0.1, load_torque_nm = 0.0, current_noise_a = 0.0, substeps = None, seed = 1))]
 #[allow(clippy::too_many_arguments)]
 pub fn simulate<'py>(
     py: Python<'py>,
@@ -56,7 +63,7 @@ pub fn simulate<'py>(
     ramp_s: f64,
     load_torque_nm: f64,
     current_noise_a: f64,
-    substeps: u32,
+    substeps: Option<u32>,
     seed: u64,
 ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
     let motor = profile.inner.clone();
@@ -67,29 +74,31 @@ pub fn simulate<'py>(
     let pwm = motor.drive.pwm_hz;
     let nr = motor.motor.pole_pairs;
     spec.check(pwm, nr).map_err(err)?;
-    let opts = SimOptions { substeps, current_noise_a, seed, load_torque_nm, ..SimOptions::default() };
+    let opts = options(substeps, current_noise_a, seed, load_torque_nm);
     let mut lp = ClosedLoop::new(&motor, &ctrl, mode, comp, &opts).map_err(err)?;
     let n = (duration_s * pwm).round() as usize;
-    let (cols, m) = py.allow_threads(move || {
-        let mut cols: [Vec<f64>; 9] = std::array::from_fn(|_| Vec::with_capacity(n));
-        let m = run(&mut lp, &spec, pwm, |k, rec| {
-            let r = LogRow::from_record(k, pwm, nr, rec);
-            for (c, v) in cols.iter_mut().zip([
-                r.t_s,
-                r.theta_cmd_rad,
-                r.theta_fb_rad,
-                r.omega_fb_rad_s,
-                r.i_a_a,
-                r.i_b_a,
-                r.i_d_a,
-                r.i_q_a,
-                r.iq_cmd_a,
-            ]) {
-                c.push(v);
-            }
-        });
-        (cols, m)
-    });
+    let (cols, m) = py
+        .allow_threads(move || -> Result<_, stepdamp_sim::SimError> {
+            let mut cols: [Vec<f64>; 9] = std::array::from_fn(|_| Vec::with_capacity(n));
+            let m = run(&mut lp, &spec, pwm, |k, rec| {
+                let r = LogRow::from_record(k, pwm, nr, rec);
+                for (c, v) in cols.iter_mut().zip([
+                    r.t_s,
+                    r.theta_cmd_rad,
+                    r.theta_fb_rad,
+                    r.omega_fb_rad_s,
+                    r.i_a_a,
+                    r.i_b_a,
+                    r.i_d_a,
+                    r.i_q_a,
+                    r.iq_cmd_a,
+                ]) {
+                    c.push(v);
+                }
+            })?;
+            Ok((cols, m))
+        })
+        .map_err(err)?;
     let log = PyDict::new(py);
     let names =
         ["t_s", "theta_cmd_rad", "theta_fb_rad", "omega_fb_rad_s", "i_a_a", "i_b_a", "i_d_a", "i_q_a", "iq_cmd_a"];
@@ -111,55 +120,12 @@ pub fn linear_grid(from_rad_s: f64, to_rad_s: f64, points: usize) -> Vec<f64> {
     stepdamp_sim::linear_grid(from_rad_s, to_rad_s, points)
 }
 
-/// The sweep summary: per resonance of the motor, the peak-to-peak velocity error within
-/// ±10 % of its speed for each mode and compensation, and its reduction against off.
-/// (The one function to switch to the library's sweep summary type.)
-fn summary_of<'py>(py: Python<'py>, motor: &Profile, rows: &[SweepRow]) -> PyResult<Bound<'py, PyDict>> {
-    let out = PyDict::new(py);
-    out.set_item("motor", &motor.name)?;
-    out.set_item("natural_frequency_rad_s", motor.natural_frequency_rad_s())?;
-    let mut res = Vec::new();
-    for k in motor.detent_orders() {
-        let w = motor.resonance_speed_rad_s(k);
-        let near = |m: &str, c: &str| -> Vec<&SweepRow> {
-            rows.iter()
-                .filter(|r| r.mode == m && r.compensation == c && (r.speed_cmd_rad_s - w).abs() <= 0.1 * w)
-                .collect()
-        };
-        let d = PyDict::new(py);
-        d.set_item("order", k)?;
-        d.set_item("speed_rad_s", w)?;
-        let peaks = PyDict::new(py);
-        for r in rows {
-            let key = format!("{} {}", r.mode, r.compensation);
-            if peaks.contains(&key)? {
-                continue;
-            }
-            let this = near(r.mode, r.compensation);
-            if this.is_empty() {
-                continue;
-            }
-            let e = PyDict::new(py);
-            e.set_item("pp_rad_s", peak_pp(&this))?;
-            let off = near(r.mode, "off");
-            if r.compensation != "off" && !off.is_empty() {
-                e.set_item("reduction", reduction(peak_pp(&off), peak_pp(&this)))?;
-            }
-            peaks.set_item(key, e)?;
-        }
-        d.set_item("peaks", peaks)?;
-        res.push(d);
-    }
-    out.set_item("resonances", res)?;
-    Ok(out)
-}
-
 /// Velocity error against speed (the CLI's `sweep`), in parallel on all cores. Returns
-/// `(table, summary)`: the sweep table's columns (design.md §6) and the per-resonance
-/// summary.
+/// `(table, summary_json, summary_text)`: the sweep table's columns (design.md §6) and the
+/// library's `SweepSummary` as JSON (the CLI's `--format json`) and as the CLI's text.
 #[pyfunction]
 #[pyo3(signature = (profile, modes, compensations, speeds_rad_s, *, controller = None, duration_s = 1.5,
-    load_torque_nm = 0.0, current_noise_a = 0.0, substeps = 2, seed = 1))]
+    load_torque_nm = 0.0, current_noise_a = 0.0, substeps = None, seed = 1))]
 #[allow(clippy::too_many_arguments)]
 pub fn sweep<'py>(
     py: Python<'py>,
@@ -171,9 +137,9 @@ pub fn sweep<'py>(
     duration_s: f64,
     load_torque_nm: f64,
     current_noise_a: f64,
-    substeps: u32,
+    substeps: Option<u32>,
     seed: u64,
-) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
+) -> PyResult<(Bound<'py, PyDict>, String, String)> {
     let motor = profile.inner.clone();
     let ctrl = controller_of(&motor, controller.as_deref())?;
     let spec = SweepSpec {
@@ -187,24 +153,25 @@ pub fn sweep<'py>(
             duration_s,
             window_s: (duration_s / 3.0).min(0.5),
         },
-        options: SimOptions { substeps, current_noise_a, seed, load_torque_nm, ..SimOptions::default() },
+        options: options(substeps, current_noise_a, seed, load_torque_nm),
     };
     let rows = py.allow_threads(|| stepdamp_sim::sweep(&motor, &ctrl, &spec, &|| {})).map_err(err)?;
     let t = PyDict::new(py);
-    t.set_item("mode", rows.iter().map(|r| r.mode).collect::<Vec<_>>())?;
-    t.set_item("compensation", rows.iter().map(|r| r.compensation).collect::<Vec<_>>())?;
+    t.set_item("mode", rows.iter().map(|r| r.mode.name()).collect::<Vec<_>>())?;
+    t.set_item("compensation", rows.iter().map(|r| r.compensation.name()).collect::<Vec<_>>())?;
     column(py, &t, "speed_cmd_rad_s", rows.iter().map(|r| r.speed_cmd_rad_s).collect())?;
     column(py, &t, "vel_err_rms_rad_s", rows.iter().map(|r| r.vel_err_rms_rad_s).collect())?;
     column(py, &t, "vel_err_pp_rad_s", rows.iter().map(|r| r.vel_err_pp_rad_s).collect())?;
     t.set_item("lost_sync", rows.iter().map(|r| r.lost_sync).collect::<Vec<_>>().into_pyarray(py))?;
-    let summary = summary_of(py, &motor, &rows)?;
-    Ok((t, summary))
+    let summary = SweepSummary::new(&motor, &rows);
+    let json = serde_json::to_string(&summary).map_err(err)?;
+    Ok((t, json, summary.to_string()))
 }
 
 /// Natural frequency, damping and resonance speeds of a profile (the CLI's `resonance`):
 /// a dict with `natural_frequency_rad_s`, `holding_stiffness_nm_per_rad`, `damping_ratio`,
-/// and `resonances_rad_s` {order: speed} for the profile's detent orders (or 4, 2, 1 when
-/// it has none).
+/// and `resonances_rad_s` {order: speed} for `Profile::resonance_orders` (the detent
+/// orders, highest first, or 4, 2, 1 when it has none).
 #[pyfunction]
 pub fn resonance<'py>(py: Python<'py>, profile: &PyProfile) -> PyResult<Bound<'py, PyDict>> {
     let p = &profile.inner;
@@ -213,13 +180,8 @@ pub fn resonance<'py>(py: Python<'py>, profile: &PyProfile) -> PyResult<Bound<'p
     d.set_item("natural_frequency_rad_s", p.natural_frequency_rad_s())?;
     d.set_item("holding_stiffness_nm_per_rad", p.holding_stiffness_nm_per_rad())?;
     d.set_item("damping_ratio", p.damping_ratio())?;
-    let mut orders: Vec<u16> = p.motor.detent.iter().map(|h| h.order).collect();
-    if orders.is_empty() {
-        orders = vec![4, 2, 1];
-    }
-    orders.sort_unstable_by(|a, b| b.cmp(a));
     let r = PyDict::new(py);
-    for k in orders {
+    for k in p.resonance_orders() {
         r.set_item(k, p.resonance_speed_rad_s(k))?;
     }
     d.set_item("resonances_rad_s", r)?;

@@ -13,6 +13,7 @@ raised as :class:`StepdampError` (a ``ValueError``) with the CLI's one-line mess
 from __future__ import annotations
 
 import io
+import json
 import os
 from typing import Any, Iterable, Sequence, Union
 
@@ -64,17 +65,20 @@ def simulate(
     ramp_s: float = 0.1,
     load_torque_nm: float = 0.0,
     current_noise_a: float = 0.0,
-    substeps: int = 2,
+    substeps: Union[int, None] = None,
     seed: int = 1,
     as_frame: Union[bool, None] = None,
     return_metrics: bool = False,
 ):
     """One constant-speed run from rest (the CLI's ``stepdamp simulate``).
 
-    ``mode``: ``open-loop`` or ``servo``; ``compensation``: ``off``, ``patent`` or
-    ``estimated`` (open loop only). The run holds the motor at standstill for ``dwell_s``,
+    ``mode``: ``open-loop`` or ``servo``; ``compensation``: ``off``, ``patent``,
+    ``estimated`` or ``angle`` (these two in open loop only; ``table`` replays a table file,
+    which only the CLI's ``sweep --table`` takes). The run holds the motor at standstill for ``dwell_s``,
     ramps to ``speed_rad_s`` (rad/s) in ``ramp_s`` and runs to ``duration_s`` (s).
     ``controller`` is the profile the controller believes in (default: ``profile``).
+    ``substeps``: RK4 steps of the plant per PWM period (``None``: the library's default,
+    as the CLI's).
 
     Returns the run log, one row per control period, columns ``t_s``, ``theta_cmd_rad``,
     ``theta_fb_rad``, ``omega_fb_rad_s``, ``i_a_a``, ``i_b_a``, ``i_d_a``, ``i_q_a``,
@@ -101,22 +105,25 @@ def linear_grid(from_rad_s: float, to_rad_s: float, points: int) -> list:
 
 
 class SweepSummary(dict):
-    """Per-resonance summary of a sweep: ``resonances`` is a list of
-    ``{order, speed_rad_s, peaks: {"<mode> <compensation>": {pp_rad_s, reduction}}}``, the
-    peak-to-peak velocity error within ±10 % of each resonance speed and its reduction
-    (off / on)."""
+    """The summary of a sweep, the library's ``SweepSummary`` (the CLI's ``sweep --format
+    json``, key for key): ``motor``, ``natural_frequency_rad_s`` (rad/s), ``damping_ratio``,
+    ``resonances`` (``[{order, speed_rad_s}]``, rad/s, highest order first), ``from_rad_s``,
+    ``to_rad_s`` and ``modes``: per mode ``{mode, lanes, near_resonances}``, where ``lanes``
+    gives per compensation the median RMS and worst peak-to-peak velocity error (rad/s) and
+    their ratios to compensation off (``vs_off``: off / this, how many times less), and
+    ``near_resonances`` the highest peak-to-peak error within ±10 % of each resonance speed
+    per compensation (``peaks``: ``[{compensation, pp_rad_s, vs_off}]``). A diverged run's
+    infinite error is ``None`` (JSON has no infinity). ``str()`` is the CLI's printed text."""
+
+    def __init__(self, data: dict, text: str = ""):
+        super().__init__(data)
+        self._text = text
+
+    def __str__(self) -> str:
+        return self._text
 
     def __repr__(self) -> str:
-        lines = [f"SweepSummary({self['motor']}, ω_n {self['natural_frequency_rad_s']:.1f} rad/s)"]
-        for r in self["resonances"]:
-            parts = []
-            for k, v in r["peaks"].items():
-                s = f"{k} {v['pp_rad_s']:.4g} rad/s"
-                if "reduction" in v:
-                    s += f" ({v['reduction']:.1f}x)"
-                parts.append(s)
-            lines.append(f"  k={r['order']} {r['speed_rad_s']:.2f} rad/s: " + ", ".join(parts))
-        return "\n".join(lines)
+        return f"SweepSummary(\n{self._text})"
 
 
 def _list(x: Union[str, Iterable[str]]) -> list:
@@ -135,25 +142,29 @@ def sweep(
     duration_s: float = 1.5,
     load_torque_nm: float = 0.0,
     current_noise_a: float = 0.0,
-    substeps: int = 2,
+    substeps: Union[int, None] = None,
     seed: int = 1,
     as_frame: Union[bool, None] = None,
 ):
     """Velocity error against speed (the CLI's ``stepdamp sweep``), on all cores.
 
-    ``speeds_rad_s`` defaults to the CLI's grid, ``linear_grid(1, 40, 60)``. Returns
+    ``modes``: ``open-loop``, ``servo``; ``compensations``: ``off``, ``patent``,
+    ``estimated``, ``angle`` (a list or a comma-separated string; ``table`` needs the CLI's
+    ``--table`` file). ``speeds_rad_s`` defaults to the CLI's grid, ``linear_grid(1, 40,
+    60)``. ``substeps``: RK4 steps per PWM period (``None``: the library's default, as the
+    CLI's). Returns
     ``(table, summary)``: the sweep table (columns ``mode``, ``compensation``,
     ``speed_cmd_rad_s``, ``vel_err_rms_rad_s``, ``vel_err_pp_rad_s``, ``lost_sync``; the CLI's
     ``sweep.csv``) and a :class:`SweepSummary`.
     """
     if speeds_rad_s is None:
         speeds_rad_s = linear_grid(1.0, 40.0, 60)
-    table, summary = _native.sweep(
+    table, summary_json, summary_text = _native.sweep(
         profile, _list(modes), _list(compensations), [float(w) for w in np.asarray(speeds_rad_s).ravel()],
         controller=controller, duration_s=duration_s, load_torque_nm=load_torque_nm,
         current_noise_a=current_noise_a, substeps=substeps, seed=seed,
     )
-    return _table(table, as_frame), SweepSummary(summary)
+    return _table(table, as_frame), SweepSummary(json.loads(summary_json), summary_text)
 
 
 def _log_arg(log: Any, i: int):
@@ -192,7 +203,8 @@ def identify(logs: Sequence[Any], base: Profile, orders: Sequence[int] = (1, 2, 
 
 def resonance(profile: Profile) -> dict:
     """Natural frequency (rad/s), holding stiffness (N·m/rad), damping ratio and the
-    resonance speed of each detent order (rad/s) of a profile (the CLI's ``resonance``)."""
+    resonance speed of each detent order, highest first (4, 2, 1 when the profile has no
+    detent), rad/s, of a profile (the CLI's ``resonance``)."""
     return _native.resonance(profile)
 
 

@@ -6,7 +6,10 @@ import numpy as np
 from ._native import PRESETS as PRESETS, Profile as Profile, StepdampError as StepdampError
 from .studies import StudyResult as StudyResult, load_spec as load_spec, study as study
 
-class SweepSummary(dict): ...
+class SweepSummary(Dict[str, Any]):
+    """The library's sweep summary (the CLI's ``sweep --format json``); ``str()`` is the CLI's text."""
+
+    def __init__(self, data: Dict[str, Any], text: str = ...) -> None: ...
 
 def simulate(
     profile: Profile,
@@ -20,7 +23,7 @@ def simulate(
     ramp_s: float = 0.1,
     load_torque_nm: float = 0.0,
     current_noise_a: float = 0.0,
-    substeps: int = 2,
+    substeps: Optional[int] = None,
     seed: int = 1,
     as_frame: Optional[bool] = None,
     return_metrics: bool = False,
@@ -36,7 +39,7 @@ def sweep(
     duration_s: float = 1.5,
     load_torque_nm: float = 0.0,
     current_noise_a: float = 0.0,
-    substeps: int = 2,
+    substeps: Optional[int] = None,
     seed: int = 1,
     as_frame: Optional[bool] = None,
 ) -> Tuple[Any, SweepSummary]: ...

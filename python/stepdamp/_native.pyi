@@ -55,7 +55,9 @@ class Profile:
     @staticmethod
     def preset(name: str) -> Profile: ...
     @staticmethod
-    def load(path: Union[str, PathLike[str]]) -> Profile: ...
+    def load(path: Union[str, PathLike[str]]) -> Profile:
+        """A TOML file (a name with "/" or ending in ".toml") or a preset name, as the CLI's --motor."""
+        ...
     @staticmethod
     def from_toml(text: str, origin: str = "<string>") -> Profile: ...
     def to_toml(self) -> str: ...
@@ -77,7 +79,7 @@ def simulate(
     ramp_s: float = 0.1,
     load_torque_nm: float = 0.0,
     current_noise_a: float = 0.0,
-    substeps: int = 2,
+    substeps: Optional[int] = None,
     seed: int = 1,
 ) -> Tuple[Dict[str, npt.NDArray[np.float64]], Dict[str, Any]]: ...
 def linear_grid(from_rad_s: float, to_rad_s: float, points: int) -> List[float]: ...
@@ -91,9 +93,11 @@ def sweep(
     duration_s: float = 1.5,
     load_torque_nm: float = 0.0,
     current_noise_a: float = 0.0,
-    substeps: int = 2,
+    substeps: Optional[int] = None,
     seed: int = 1,
-) -> Tuple[Dict[str, Any], Dict[str, Any]]: ...
+) -> Tuple[Dict[str, Any], str, str]:
+    """(table columns, SweepSummary as JSON, SweepSummary as the CLI's text)."""
+    ...
 def resonance(profile: Profile) -> Dict[str, Any]: ...
 def identify(
     logs: Sequence[Tuple[str, str, Optional[str]]], base: Profile, orders: Sequence[int] = ..., name: Optional[str] = None

@@ -1,6 +1,7 @@
 """The stepdamp Python API against the CLI (same Rust code, same numbers, same errors)."""
 
 import copy
+import json
 import pickle
 
 import numpy as np
@@ -72,19 +73,27 @@ def test_simulate_columns_are_numpy_arrays_owning_one_buffer_each():
         assert a.base is not None and not isinstance(a.base, np.ndarray)
 
 
-def test_a_sweep_table_equals_the_clis_for_the_same_inputs(tmp_path, cli):
+def test_a_sweep_table_and_summary_equal_the_clis_for_the_same_inputs(tmp_path, cli):
     p = Profile.preset("patent-motor")
-    table, summary = stepdamp.sweep(p, "open-loop", "off,patent,estimated", stepdamp.linear_grid(4.0, 8.4, 3),
-                                    duration_s=0.5)
-    rc, _, err = cli("sweep", "--mode", "open-loop", "--compensation", "off,patent,estimated", "--from", 4.0,
-                     "--to", 8.4, "--points", 3, "--duration", 0.5, "--out", tmp_path)
+    comps = "off,patent,estimated,angle"
+    table, summary = stepdamp.sweep(p, "open-loop", comps, stepdamp.linear_grid(4.0, 8.4, 3), duration_s=0.5)
+    args = ["sweep", "--mode", "open-loop", "--compensation", comps, "--from", 4.0, "--to", 8.4, "--points", 3,
+            "--duration", 0.5, "--out", tmp_path]
+    rc, out_json, err = cli(*args, "--format", "json")
     assert rc == 0, err
     ref = pd.read_csv(tmp_path / "sweep.csv", float_precision="round_trip")
     pd.testing.assert_frame_equal(table, ref, check_exact=True)
-    assert len(table) == 9
-    k4 = summary["resonances"][0]
-    assert k4["order"] == 4 and k4["speed_rad_s"] == p.resonance_speed_rad_s(4)
-    assert k4["peaks"]["open-loop patent"]["reduction"] > 1.0
+    assert len(table) == 12
+    # The summary is the library's: the CLI's JSON key for key, and its printed text.
+    assert dict(summary) == json.loads(out_json)
+    rc, out_text, err = cli(*args)
+    assert rc == 0, err
+    assert str(summary) and str(summary) in out_text
+    assert summary["resonances"][0] == {"order": 4, "speed_rad_s": p.resonance_speed_rad_s(4)}
+    near_k4 = summary["modes"][0]["near_resonances"][0]
+    assert near_k4["resonance"]["order"] == 4
+    patent = [q for q in near_k4["peaks"] if q["compensation"] == "patent"][0]
+    assert patent["vs_off"] > 1.0
     assert "k=4" in repr(summary)
 
 
@@ -129,11 +138,13 @@ def test_rust_errors_become_exceptions_with_one_line_messages():
     p = Profile.preset("patent-motor")
     cases = [
         (lambda: stepdamp.simulate(p, "sideways", "off", 5.0, 0.5), "mode 'sideways'"),
+        (lambda: stepdamp.simulate(p, "open-loop", "maybe", 5.0, 0.5), "expected off, patent, estimated, angle, table"),
         (lambda: stepdamp.simulate(p, "servo", "estimated", 5.0, 0.5), "estimated"),
         (lambda: stepdamp.simulate(p, "open-loop", "off", 5.0, 0.05), "duration"),
         (lambda: stepdamp.sweep(p, "open-loop", "off", []), "speeds"),
         (lambda: stepdamp.identify([pd.DataFrame({"t_s": [0.0, 1.0]})], p), "missing column"),
-        (lambda: Profile.load("/nonexistent/motor.toml"), "unknown motor"),
+        (lambda: Profile.load("/nonexistent/motor.toml"), "no such profile file"),
+        (lambda: Profile.load("nope"), "unknown motor 'nope'"),
     ]
     for call, needle in cases:
         with pytest.raises(StepdampError) as e:

@@ -12,9 +12,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use stepdamp_sim::profile::ProfileData;
 use stepdamp_sim::sweep::derived_seed;
-use stepdamp_sim::{
-    Profile, RunSpec, SimOptions, SweepRow, SweepSpec, compensation_name, linear_grid, mode_name, sweep,
-};
+use stepdamp_sim::{Profile, RunSpec, SimOptions, SweepRow, SweepSpec, linear_grid, sweep};
 
 /// One drawn motor variant.
 #[derive(Clone, Debug, PartialEq)]
@@ -147,7 +145,7 @@ impl Study {
             run: RunSpec::at(1.0),
             options: SimOptions::default(),
         };
-        probe.pairs().into_iter().map(|(m, c)| (mode_name(m), compensation_name(c))).collect()
+        probe.pairs().into_iter().map(|(m, c)| (m.name(), c.name())).collect()
     }
 
     /// Parameter columns: the plant's, then the controller's where it has its own error.

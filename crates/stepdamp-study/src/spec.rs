@@ -28,7 +28,7 @@
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 use stepdamp_core::Mode;
-use stepdamp_sim::{Compensation, Profile, compensation_name, mode_name};
+use stepdamp_sim::{Compensation, Profile};
 
 /// A distribution of one parameter. Uniform draws; `scale` multiplies the nominal value,
 /// `add` adds to it, `uniform` replaces it.
@@ -148,10 +148,11 @@ pub enum ControllerModel {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SweepSection {
-    /// Control modes (`open-loop`, `servo`).
+    /// Control modes by the core's names ([`Mode::name`]: `open-loop`, `servo`).
     pub modes: Vec<String>,
-    /// Compensations (`off`, `patent`, `estimated`); `off` is the reference of every
-    /// reduction and is always run.
+    /// Compensations by the core's names ([`Compensation::name`]: `off`, `patent`,
+    /// `estimated`, `angle`; `table` replays a table file, which a study has not, and is
+    /// refused); `off` is the reference of every reduction and is always run.
     pub compensations: Vec<String>,
     /// Detent orders whose resonances are measured (default: the profile's detent orders,
     /// largest amplitude first).
@@ -290,16 +291,6 @@ pub struct Study {
     pub orders: Vec<u16>,
 }
 
-/// Parses a mode name as written in tables (`open-loop`, `servo`).
-pub fn parse_mode(s: &str) -> Option<Mode> {
-    [Mode::OpenLoop, Mode::Servo].into_iter().find(|&m| mode_name(m) == s)
-}
-
-/// Parses a compensation name as written in tables (`off`, `patent`, `estimated`).
-pub fn parse_compensation(s: &str) -> Option<Compensation> {
-    [Compensation::Off, Compensation::Patent, Compensation::Estimated].into_iter().find(|&c| compensation_name(c) == s)
-}
-
 impl Study {
     /// Reads and checks a spec file.
     pub fn load(path: &Path) -> Result<Study, StudyError> {
@@ -336,18 +327,15 @@ impl Study {
         if s.modes.is_empty() {
             return Err(bad("sweep.modes: the list is empty".into()));
         }
+        // The core's names (`Mode::name`, `Compensation::name`); its message lists them.
         for m in &s.modes {
-            if parse_mode(m).is_none() {
-                return Err(bad(format!("sweep.modes: '{m}': expected open-loop or servo")));
-            }
+            m.parse::<Mode>().map_err(|e| bad(format!("sweep.modes: '{m}': {e}")))?;
         }
         for c in &s.compensations {
-            if parse_compensation(c).is_none() {
-                return Err(bad(format!("sweep.compensations: '{c}': expected off, patent or estimated")));
-            }
+            c.parse::<Compensation>().map_err(|e| bad(format!("sweep.compensations: '{c}': {e}")))?;
         }
         if !s.compensations.iter().any(|c| c != "off") {
-            return Err(bad("sweep.compensations: name at least one of patent, estimated (off is always run)".into()));
+            return Err(bad("sweep.compensations: name at least one besides off (off is always run)".into()));
         }
         if !(1..=50).contains(&s.points) {
             return Err(bad(format!("sweep.points = {}: must be in 1..=50", s.points)));
@@ -420,13 +408,13 @@ impl Study {
 
     /// The modes run, in table order.
     pub fn modes(&self) -> Vec<Mode> {
-        self.spec.sweep.modes.iter().filter_map(|m| parse_mode(m)).collect()
+        self.spec.sweep.modes.iter().filter_map(|m| m.parse().ok()).collect()
     }
 
     /// The compensations run, in table order: `off` first, then the spec's others.
     pub fn compensations(&self) -> Vec<Compensation> {
         let mut out = vec![Compensation::Off];
-        for c in self.spec.sweep.compensations.iter().filter_map(|c| parse_compensation(c)) {
+        for c in self.spec.sweep.compensations.iter().filter_map(|c| c.parse().ok()) {
             if !out.contains(&c) {
                 out.push(c);
             }

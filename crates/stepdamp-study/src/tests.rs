@@ -147,6 +147,14 @@ fn spec_errors_name_the_file_and_the_key() {
     assert!(e.contains("sweep.compensations"), "{e}");
     let e = err(&format!("{base}[sweep]\nmodes = [\"servo\"]\ncompensations = [\"estimated\"]\n"));
     assert!(e.contains("estimated"), "{e}");
+    // Names are the core's (one definition): an unknown one is reported with the core's list.
+    let e = err(&format!("{base}[sweep]\nmodes = [\"sideways\"]\n"));
+    assert!(e.contains("sweep.modes: 'sideways': unknown mode: expected open-loop, servo"), "{e}");
+    let e = err(&format!("{base}[sweep]\ncompensations = [\"off\", \"maybe\"]\n"));
+    assert!(e.contains("sweep.compensations: 'maybe': unknown compensation: expected off, patent, estimated"), "{e}");
+    // A study has no table file to replay.
+    let e = err(&format!("{base}[sweep]\ncompensations = [\"table\"]\n"));
+    assert!(e.contains("table"), "{e}");
     let e = err(&format!("{base}[controller_error]\nload_torque_nm = {{ uniform = [0.0, 0.1] }}\n"));
     assert!(e.contains("controller_error.load_torque_nm"), "{e}");
 }
