@@ -11,7 +11,8 @@
 # tree against <earlier-commit>, from `scripts/bench-sweep.sh` (interleaved pairs, medians,
 # ratio of the medians of CPU time). Everything it runs prints to stderr; the table alone
 # goes to stdout, so `bash scripts/perf-table.sh > /tmp/table.md` keeps just the table.
-# It reports; it never fails on a time.
+# PERF_SWEEP_LOG=FILE takes the sweep rows from a saved bench-sweep.sh output instead of
+# measuring again. It reports; it never fails on a time.
 set -euo pipefail
 
 old_rev=${1:-08f3470}
@@ -37,8 +38,17 @@ echo "== criterion: stepdamp-sim" >&2
 criterion -p stepdamp-sim --bench sim 'plant_rk4_step|closed_loop_period|lockstep' >"$tmp/sim.txt"
 cat "$tmp/core.txt" "$tmp/sim.txt" >&2
 
-echo "== README sweep against $old_rev ($pairs interleaved pairs)" >&2
-BENCH_CRITERION=0 bash scripts/bench-sweep.sh "$old_rev" "$pairs" | tee "$tmp/sweep.txt" >&2
+if [[ -n ${PERF_SWEEP_LOG:-} ]]; then
+    # The output of an earlier `BENCH_CRITERION=0 bash scripts/bench-sweep.sh <rev> <pairs>`
+    # of this tree (saves its two release builds and 2·pairs sweeps).
+    echo "== README sweep: from $PERF_SWEEP_LOG" >&2
+    cp "$PERF_SWEEP_LOG" "$tmp/sweep.txt"
+    old_rev=$(awk '/^== medians/ { getline; getline; print $1; exit }' "$tmp/sweep.txt")
+    pairs=$(awk '/^== medians over/ { print $4; exit }' "$tmp/sweep.txt")
+else
+    echo "== README sweep against $old_rev ($pairs interleaved pairs)" >&2
+    BENCH_CRITERION=0 bash scripts/bench-sweep.sh "$old_rev" "$pairs" | tee "$tmp/sweep.txt" >&2
+fi
 
 get() { # file name → "value unit"
     awk -v n="$2" '$1 == n { print $2, $3; found = 1 } END { if (!found) print "n/a" }' "$1"
