@@ -72,7 +72,7 @@ Measured on this $(nproc)-core machine ($(date -u +%Y-%m-%d), load average $(cut
 | plant RK4 step | $(get "$tmp/sim.txt" plant_rk4_step) | \`cargo bench -p stepdamp-sim\` |
 | one closed-loop control period, open loop (RK4 + controller) | $(get "$tmp/sim.txt" closed_loop_period_open_loop) | \`cargo bench -p stepdamp-sim\` |
 | one closed-loop control period, servo | $(get "$tmp/sim.txt" closed_loop_period_servo) | \`cargo bench -p stepdamp-sim\` |
-| one lock-step group: 4 open-loop runs × 1.5 s | $(get "$tmp/sim.txt" lockstep/open_loop_run_periods) | \`cargo bench -p stepdamp-sim -- lockstep\` |
+| one lock-step group: 4 open-loop runs of 0.05 s (1,000 periods each) | $(get "$tmp/sim.txt" lockstep/open_loop_run_periods) | \`cargo bench -p stepdamp-sim -- lockstep\` |
 | README sweep: 240 runs × 1.5 s, CPU time (user + sys, median) | ${new_cpu} s, about ${sim_s} simulated s per CPU s; ${new_wall} s wall | \`bash scripts/bench-sweep.sh $old_rev $pairs\` |
 | README sweep against $old_rev, same run, interleaved | ${old_cpu} s → ${new_cpu} s CPU: ${ratio} less | \`bash scripts/bench-sweep.sh $old_rev $pairs\` |
 EOF
