@@ -98,12 +98,24 @@ pub const DIVERGED_SPEED_RAD_S: f64 = 1.0e6;
 /// [`SimError::Diverged`] at `t_s` naming the first variable of `x` that is NaN, infinite
 /// or beyond [`DIVERGED_CURRENT_A`] / [`DIVERGED_SPEED_RAD_S`] (a plant that left the
 /// physical range does not come back: its metrics would be overflowed numbers).
+///
+/// The test runs every period of every run: it is inlined, and the naming of the variable
+/// is a separate cold function.
+#[inline(always)]
 fn check_finite(t_s: f64, x: &PlantState) -> Result<(), SimError> {
     let (ci, cw) = (DIVERGED_CURRENT_A, DIVERGED_SPEED_RAD_S);
     // `<=` is false for NaN.
     if x.i_a.abs() <= ci && x.i_b.abs() <= ci && x.omega.abs() <= cw && x.theta.is_finite() {
         return Ok(());
     }
+    Err(diverged(t_s, x))
+}
+
+/// The [`SimError::Diverged`] of a state that failed [`check_finite`].
+#[cold]
+#[inline(never)]
+fn diverged(t_s: f64, x: &PlantState) -> SimError {
+    let (ci, cw) = (DIVERGED_CURRENT_A, DIVERGED_SPEED_RAD_S);
     let vars = [
         (x.i_a, ci, "phase A current i_a", "A"),
         (x.i_b, ci, "phase B current i_b", "A"),
@@ -117,7 +129,7 @@ fn check_finite(t_s: f64, x: &PlantState) -> Result<(), SimError> {
     } else {
         format!("{name} = {v} {unit}")
     };
-    Err(SimError::Diverged { t_s, what })
+    SimError::Diverged { t_s, what }
 }
 
 /// Runs `specs[i]` on `loops[i]` (each fresh from [`ClosedLoop::new`]) for every lane
