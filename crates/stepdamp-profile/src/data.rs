@@ -261,8 +261,9 @@ pub mod sim_limits {
         unit: "× motor.coulomb_friction_nm",
         why: "break-away friction is at least the sliding level and rarely twice it",
     };
-    /// Each of `drive.current_offset_a` as a fraction of `drive.current_limit_a`: `±0.1`.
-    pub const CURRENT_OFFSET_PER_LIMIT: f64 = 0.1;
+    /// Each of `drive.current_offset_a` is within `±drive.current_limit_a` divided by this
+    /// (10 %: a sensor further off than that fails the drive's own offset calibration).
+    pub const CURRENT_LIMIT_PER_OFFSET: f64 = 10.0;
     /// Each of `drive.current_gain_error`.
     pub const CURRENT_GAIN_ERROR: Limit = Limit {
         key: "drive.current_gain_error",

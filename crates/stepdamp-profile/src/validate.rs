@@ -119,7 +119,7 @@ fn check_simulator(p: &ProfileData, origin: &str) -> Result<(), ProfileError> {
         }
     }
     let d = &p.drive;
-    let max_offset = sl::CURRENT_OFFSET_PER_LIMIT * d.current_limit_a;
+    let max_offset = d.current_limit_a / sl::CURRENT_LIMIT_PER_OFFSET;
     for (i, &o) in d.current_offset_a.iter().enumerate() {
         if !(o.is_finite() && o.abs() <= max_offset) {
             return Err(invalid(
