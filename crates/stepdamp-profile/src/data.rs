@@ -43,6 +43,69 @@ pub struct MotorSection {
     /// Detent harmonics: torque on the rotor `−Σ A sin(k·Nr·θ + φ)`.
     #[serde(default)]
     pub detent: Vec<DetentTerm>,
+    /// `[motor.friction]` (optional): the law of the Coulomb part, Karnopp when absent.
+    /// Simulator only: the controller's model is `coulomb_friction_nm`.
+    #[serde(default, skip_serializing_if = "FrictionSection::is_default")]
+    pub friction: FrictionSection,
+}
+
+/// `[motor.friction]`: which law the simulated plant's Coulomb friction `Fs`
+/// (`motor.coulomb_friction_nm`) follows, and its extra parameters.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrictionSection {
+    /// The law (default `"karnopp"`).
+    #[serde(default)]
+    pub law: FrictionLawName,
+    /// Creep speed `ω_ε` in rad/s of the smooth sign `tanh(ω/ω_ε)` (smooth and stribeck).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub creep_speed_rad_s: Option<f64>,
+    /// Break-away torque `Fs_static` in N·m (stribeck).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub static_nm: Option<f64>,
+    /// Stribeck speed `ω_s` in rad/s over which the torque falls from `Fs_static` to `Fs`
+    /// (stribeck).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stribeck_speed_rad_s: Option<f64>,
+}
+
+impl FrictionSection {
+    /// Today's Karnopp friction with no other key (not written out).
+    pub fn is_default(&self) -> bool {
+        *self == FrictionSection::default()
+    }
+}
+
+/// Friction law names in profiles.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FrictionLawName {
+    /// `Fs·sgn(ω)` when moving, sticking at rest while the other torques stay within `Fs`.
+    #[default]
+    Karnopp,
+    /// `Fs·tanh(ω/ω_ε)`: no sticking, the rotor creeps below `Fs`.
+    Smooth,
+    /// `(Fs + (Fs_static − Fs)·exp(−(ω/ω_s)²))·tanh(ω/ω_ε)`.
+    Stribeck,
+}
+
+impl FrictionLawName {
+    /// The name as written in profiles.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            FrictionLawName::Karnopp => "karnopp",
+            FrictionLawName::Smooth => "smooth",
+            FrictionLawName::Stribeck => "stribeck",
+        }
+    }
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+
+fn is_zero2(v: &[f64; 2]) -> bool {
+    *v == [0.0, 0.0]
 }
 
 /// One `[[motor.detent]]` entry.
@@ -80,6 +143,14 @@ pub struct DriveSection {
     /// drops below 45°.
     #[serde(default = "default_delay")]
     pub computation_delay_periods: u8,
+    /// Current-sensor offsets of phases A and B in A (simulator only: what the drive reads
+    /// is `(1 + gain error)·i + offset`); default `[0, 0]`.
+    #[serde(default, skip_serializing_if = "is_zero2")]
+    pub current_offset_a: [f64; 2],
+    /// Current-sensor gain errors of phases A and B (the gain is `1 + ε`; simulator only);
+    /// default `[0, 0]`.
+    #[serde(default, skip_serializing_if = "is_zero2")]
+    pub current_gain_error: [f64; 2],
 }
 
 fn default_delay() -> u8 {
@@ -131,6 +202,13 @@ impl From<TopologyName> for Topology {
 pub struct EncoderSection {
     /// Counts per mechanical revolution (quadrature edges).
     pub counts_per_rev: u32,
+    /// Code-disc eccentricity in rad (simulator only): the encoder reads
+    /// `θ + e·sin(θ + φ_e)`, a once-per-revolution angle error; default 0.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub eccentricity_rad: f64,
+    /// Phase `φ_e` of the eccentricity in rad; default 0.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub eccentricity_phase_rad: f64,
 }
 
 /// `[servo]` (optional): the position loop of patent eq. 15.
@@ -148,4 +226,69 @@ impl Default for ServoSection {
     fn default() -> Self {
         ServoSection { bandwidth_hz: 40.0, velocity_filter_hz: 250.0 }
     }
+}
+
+/// Ranges of the simulator-only keys (the plant's friction law and sensor errors; the
+/// controller never reads them, so they live here and not in [`stepdamp_core::limits`]).
+pub mod sim_limits {
+    use stepdamp_core::limits::Limit;
+
+    /// `motor.friction.creep_speed_rad_s`: a creep speed above 10 rad/s is no longer
+    /// friction but a viscous law.
+    pub const CREEP_SPEED_RAD_S: Limit = Limit {
+        key: "motor.friction.creep_speed_rad_s",
+        min: 0.0,
+        min_exclusive: true,
+        max: 10.0,
+        unit: "rad/s",
+        why: "above 10 rad/s the smooth sign is a viscous law, not friction",
+    };
+    /// `motor.friction.stribeck_speed_rad_s`.
+    pub const STRIBECK_SPEED_RAD_S: Limit = Limit {
+        key: "motor.friction.stribeck_speed_rad_s",
+        min: 0.0,
+        min_exclusive: true,
+        max: 10.0,
+        unit: "rad/s",
+        why: "the Stribeck dip of lubricated contacts ends well below 10 rad/s",
+    };
+    /// `motor.friction.static_nm` as a multiple of `motor.coulomb_friction_nm`: `[1, 10]`.
+    pub const STATIC_PER_COULOMB: Limit = Limit {
+        key: "motor.friction.static_nm",
+        min: 1.0,
+        min_exclusive: false,
+        max: 10.0,
+        unit: "× motor.coulomb_friction_nm",
+        why: "break-away friction is at least the sliding level and rarely twice it",
+    };
+    /// Each of `drive.current_offset_a` is within `±drive.current_limit_a` divided by this
+    /// (10 %: a sensor further off than that fails the drive's own offset calibration).
+    pub const CURRENT_LIMIT_PER_OFFSET: f64 = 10.0;
+    /// Each of `drive.current_gain_error`.
+    pub const CURRENT_GAIN_ERROR: Limit = Limit {
+        key: "drive.current_gain_error",
+        min: -0.2,
+        min_exclusive: false,
+        max: 0.2,
+        unit: "",
+        why: "a current sensor more than 20 % off is broken, not mismatched",
+    };
+    /// `encoder.eccentricity_rad` (0.01 rad is 6 counts of 4000).
+    pub const ECCENTRICITY_RAD: Limit = Limit {
+        key: "encoder.eccentricity_rad",
+        min: 0.0,
+        min_exclusive: false,
+        max: 0.01,
+        unit: "rad",
+        why: "a disc off-centre by 1 % of its code radius",
+    };
+    /// `encoder.eccentricity_phase_rad`.
+    pub const ECCENTRICITY_PHASE_RAD: Limit = Limit {
+        key: "encoder.eccentricity_phase_rad",
+        min: -std::f64::consts::PI,
+        min_exclusive: false,
+        max: std::f64::consts::PI,
+        unit: "rad",
+        why: "an angle",
+    };
 }

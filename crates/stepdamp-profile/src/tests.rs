@@ -195,3 +195,121 @@ fn an_endless_or_huge_file_is_refused_after_reading_the_profile_limit() {
     std::fs::write(&big, vec![b'#'; MAX_PROFILE_BYTES as usize + 10]).unwrap();
     assert!(Profile::from_file(&big).is_err());
 }
+
+/// The patent motor with its Coulomb friction smooth or Stribeck and every sensor error.
+fn with_simulator_keys(law: &str) -> String {
+    let friction = match law {
+        "smooth" => "\n[motor.friction]\nlaw = \"smooth\"\ncreep_speed_rad_s = 0.002\n",
+        _ => {
+            "\n[motor.friction]\nlaw = \"stribeck\"\ncreep_speed_rad_s = 0.002\nstatic_nm = 0.015\nstribeck_speed_rad_s = 0.05\n"
+        }
+    };
+    PATENT_MOTOR
+        .replacen(
+            "\n[drive]\n",
+            &format!("{friction}\n[drive]\ncurrent_offset_a = [0.02, -0.01]\ncurrent_gain_error = [0.03, -0.02]\n"),
+            1,
+        )
+        .replacen(
+            "counts_per_rev = 4000",
+            "counts_per_rev = 4000\neccentricity_rad = 0.002\neccentricity_phase_rad = 0.5",
+            1,
+        )
+}
+
+#[test]
+fn friction_laws_and_sensor_errors_round_trip_through_toml() {
+    use crate::data::FrictionLawName;
+    for law in ["smooth", "stribeck"] {
+        let p = Profile::from_toml_str(&with_simulator_keys(law), "m.toml").unwrap();
+        assert_eq!(p.motor.friction.law.as_str(), law);
+        assert_eq!(p.motor.friction.creep_speed_rad_s, Some(0.002));
+        assert_eq!(p.drive.current_offset_a, [0.02, -0.01]);
+        assert_eq!(p.drive.current_gain_error, [0.03, -0.02]);
+        assert_eq!((p.encoder.eccentricity_rad, p.encoder.eccentricity_phase_rad), (0.002, 0.5));
+        let back = Profile::from_toml_str(&p.to_toml_string(), "x").unwrap();
+        assert_eq!(p, back);
+        if law == "stribeck" {
+            assert_eq!(p.motor.friction.law, FrictionLawName::Stribeck);
+            assert_eq!((p.motor.friction.static_nm, p.motor.friction.stribeck_speed_rad_s), (Some(0.015), Some(0.05)));
+        }
+    }
+}
+
+#[test]
+fn todays_profiles_keep_karnopp_and_ideal_sensors_and_write_no_new_key() {
+    let p = Profile::preset("patent-motor").unwrap();
+    assert!(p.motor.friction.is_default());
+    assert_eq!((p.drive.current_offset_a, p.drive.current_gain_error), ([0.0; 2], [0.0; 2]));
+    assert_eq!((p.encoder.eccentricity_rad, p.encoder.eccentricity_phase_rad), (0.0, 0.0));
+    let text = p.to_toml_string();
+    for key in ["[motor.friction]", "law", "current_offset_a", "current_gain_error", "eccentricity"] {
+        assert!(!text.contains(key), "{key} written for a profile without it:\n{text}");
+    }
+    // Writing the defaults out is the same profile.
+    let explicit = PATENT_MOTOR.replacen("\n[drive]\n", "\n[motor.friction]\nlaw = \"karnopp\"\n\n[drive]\n", 1);
+    assert_eq!(Profile::from_toml_str(&explicit, "preset").unwrap().motor, p.motor);
+}
+
+#[test]
+fn bad_simulator_keys_name_file_key_value_and_range() {
+    let bad = |from: &str, to: &str, law: &str| {
+        let s = with_simulator_keys(law);
+        assert!(s.contains(from), "{from}");
+        Profile::from_toml_str(&s.replacen(from, to, 1), "m.toml").unwrap_err().to_string()
+    };
+    for (law, from, to, want) in [
+        (
+            "smooth",
+            "creep_speed_rad_s = 0.002",
+            "creep_speed_rad_s = 0",
+            "m.toml: motor.friction.creep_speed_rad_s = 0: must be in (0, 10] rad/s",
+        ),
+        (
+            "smooth",
+            "creep_speed_rad_s = 0.002",
+            "",
+            "m.toml: motor.friction.creep_speed_rad_s = (missing): law = \"smooth\" needs it",
+        ),
+        (
+            "smooth",
+            "creep_speed_rad_s = 0.002",
+            "creep_speed_rad_s = 0.002\nstatic_nm = 0.02",
+            "m.toml: motor.friction.static_nm = 0.02: law = \"smooth\" does not use it",
+        ),
+        (
+            "stribeck",
+            "static_nm = 0.015",
+            "static_nm = 0.005",
+            "m.toml: motor.friction.static_nm = 5e-3: must be in [0.01, 0.1] N·m (1 to 10 × motor.coulomb_friction_nm)",
+        ),
+        (
+            "stribeck",
+            "stribeck_speed_rad_s = 0.05",
+            "stribeck_speed_rad_s = 11",
+            "m.toml: motor.friction.stribeck_speed_rad_s = 11: must be in (0, 10] rad/s",
+        ),
+        (
+            "smooth",
+            "current_offset_a = [0.02, -0.01]",
+            "current_offset_a = [0.02, -0.5]",
+            "m.toml: drive.current_offset_a[1] = -0.5: must be in [-0.3, 0.3] A (10 % of drive.current_limit_a)",
+        ),
+        (
+            "smooth",
+            "current_gain_error = [0.03, -0.02]",
+            "current_gain_error = [0.3, -0.02]",
+            "m.toml: drive.current_gain_error[0] = 0.3: must be in [-0.2, 0.2]",
+        ),
+        (
+            "smooth",
+            "eccentricity_rad = 0.002",
+            "eccentricity_rad = 0.02",
+            "m.toml: encoder.eccentricity_rad = 0.02: must be in [0, 0.01] rad",
+        ),
+        ("smooth", "law = \"smooth\"", "law = \"coulomb\"", "unknown variant `coulomb`"),
+    ] {
+        let e = bad(from, to, law);
+        assert!(e.contains(want), "{e}\nwant: {want}");
+    }
+}

@@ -72,6 +72,70 @@ pub(crate) fn check(p: &ProfileData, origin: &str) -> Result<(), ProfileError> {
         let v = Num(d.current_loop_bandwidth_hz).to_string();
         return Err(invalid(origin, key, v, "must be below a quarter of drive.pwm_hz"));
     }
+    check_simulator(p, origin)
+}
+
+/// The simulator-only keys ([`crate::data::sim_limits`]): the friction law's parameters
+/// present exactly when the law needs them, and the sensor errors.
+fn check_simulator(p: &ProfileData, origin: &str) -> Result<(), ProfileError> {
+    use crate::data::{FrictionLawName, sim_limits as sl};
+    let f = &p.motor.friction;
+    let law = f.law.as_str();
+    let needs = |key: &str, v: Option<f64>, needed: bool| -> Result<Option<f64>, ProfileError> {
+        match (v, needed) {
+            (None, true) => Err(invalid(
+                origin,
+                &format!("motor.friction.{key}"),
+                "(missing)".into(),
+                &format!("law = \"{law}\" needs it"),
+            )),
+            (Some(v), false) => Err(invalid(
+                origin,
+                &format!("motor.friction.{key}"),
+                Num(v).to_string(),
+                &format!("law = \"{law}\" does not use it"),
+            )),
+            (v, _) => Ok(v),
+        }
+    };
+    let smooth = f.law != FrictionLawName::Karnopp;
+    let stribeck = f.law == FrictionLawName::Stribeck;
+    if let Some(v) = needs("creep_speed_rad_s", f.creep_speed_rad_s, smooth)? {
+        within(origin, sl::CREEP_SPEED_RAD_S.key, v, &sl::CREEP_SPEED_RAD_S)?;
+    }
+    if let Some(v) = needs("stribeck_speed_rad_s", f.stribeck_speed_rad_s, stribeck)? {
+        within(origin, sl::STRIBECK_SPEED_RAD_S.key, v, &sl::STRIBECK_SPEED_RAD_S)?;
+    }
+    if let Some(v) = needs("static_nm", f.static_nm, stribeck)? {
+        let fs = p.motor.coulomb_friction_nm;
+        let (lo, hi) = (sl::STATIC_PER_COULOMB.min * fs, sl::STATIC_PER_COULOMB.max * fs);
+        if !(v.is_finite() && v >= lo && v <= hi) {
+            return Err(invalid(
+                origin,
+                sl::STATIC_PER_COULOMB.key,
+                Num(v).to_string(),
+                &format!("must be in [{}, {}] N·m (1 to 10 × motor.coulomb_friction_nm)", Num(lo), Num(hi)),
+            ));
+        }
+    }
+    let d = &p.drive;
+    let max_offset = d.current_limit_a / sl::CURRENT_LIMIT_PER_OFFSET;
+    for (i, &o) in d.current_offset_a.iter().enumerate() {
+        if !(o.is_finite() && o.abs() <= max_offset) {
+            return Err(invalid(
+                origin,
+                &format!("drive.current_offset_a[{i}]"),
+                Num(o).to_string(),
+                &format!("must be in [-{0}, {0}] A (10 % of drive.current_limit_a)", Num(max_offset)),
+            ));
+        }
+    }
+    for (i, &g) in d.current_gain_error.iter().enumerate() {
+        within(origin, &format!("drive.current_gain_error[{i}]"), g, &sl::CURRENT_GAIN_ERROR)?;
+    }
+    let e = &p.encoder;
+    within(origin, sl::ECCENTRICITY_RAD.key, e.eccentricity_rad, &sl::ECCENTRICITY_RAD)?;
+    within(origin, sl::ECCENTRICITY_PHASE_RAD.key, e.eccentricity_phase_rad, &sl::ECCENTRICITY_PHASE_RAD)?;
     Ok(())
 }
 

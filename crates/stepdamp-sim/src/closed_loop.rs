@@ -1,8 +1,9 @@
 //! The closed loop: the plant, the drive's sensors and power stage, and the
 //! `stepdamp-core` controller, one control period at a time.
 //!
-//! Per period: sample the plant (currents with optional ADC quantisation and seeded
-//! Gaussian noise, encoder count by `floor`); run the core's [`step`]; apply the duties
+//! Per period: sample the plant (currents through the profile's sensor offsets and gain
+//! errors, then optional ADC quantisation and seeded Gaussian noise; encoder count by
+//! `floor` of the angle through the disc's eccentricity, [`crate::sensors`]); run the core's [`step`]; apply the duties
 //! (one period later when the profile's `drive.computation_delay_periods` is 1, the
 //! default, as a real drive that loads the PWM compare registers for the next period) as average winding voltages
 //! `Vdc·(d_α − d_γ)`, `Vdc·(d_β − d_γ)` held over the period (zero-order hold); integrate
@@ -11,6 +12,7 @@
 use crate::lanes::{Integrator, StateLanes};
 use crate::plant::{PlantParams, PlantState};
 use crate::profile::{Profile, ProfileError};
+use crate::sensors::{CurrentSensors, Eccentricity};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -263,6 +265,10 @@ pub struct ClosedLoop {
     lsb: f64,
     rng: ChaCha8Rng,
     counts_per_rad: f64,
+    /// The profile's current-sensor errors (`None`: ideal).
+    current_sensors: Option<CurrentSensors>,
+    /// The profile's encoder eccentricity (`None`: a centred disc).
+    eccentricity: Option<Eccentricity>,
     pole_pairs: u16,
     load_torque_nm: f64,
     /// The speed command of the last period (NaN before the first): the controller's
@@ -344,6 +350,8 @@ impl ClosedLoop {
             lsb: opts.current_lsb_a,
             rng: ChaCha8Rng::seed_from_u64(opts.seed),
             counts_per_rad: f64::from(motor.encoder.counts_per_rev) / std::f64::consts::TAU,
+            current_sensors: CurrentSensors::from_profile(motor),
+            eccentricity: Eccentricity::from_profile(motor),
             pole_pairs: motor.motor.pole_pairs,
             load_torque_nm: opts.load_torque_nm,
             last_speed_cmd: f64::NAN,
@@ -421,10 +429,19 @@ impl ClosedLoop {
     #[inline]
     pub(crate) fn control(&mut self, speed_cmd_rad_s: f64) -> (PeriodRecord, f64, f64) {
         let sampled = self.x;
+        // The profile's sensor errors, before noise and quantisation.
+        let (i_a, i_b) = match self.current_sensors {
+            Some(s) => s.read(sampled.i_a, sampled.i_b),
+            None => (sampled.i_a, sampled.i_b),
+        };
+        let theta_read = match self.eccentricity {
+            Some(e) => e.read(sampled.theta),
+            None => sampled.theta,
+        };
         let m = Measurement {
-            i_a_a: self.sample_current(sampled.i_a),
-            i_b_a: self.sample_current(sampled.i_b),
-            encoder_count: (floor_i64(sampled.theta * self.counts_per_rad)) as u32,
+            i_a_a: self.sample_current(i_a),
+            i_b_a: self.sample_current(i_b),
+            encoder_count: (floor_i64(theta_read * self.counts_per_rad)) as u32,
         };
         // `!=` is also true while the last command is NaN, so the first period sets it.
         if speed_cmd_rad_s != self.last_speed_cmd {

@@ -4,7 +4,7 @@
 //! functions return the torque that opposes the motion, positive for `ω > 0`. The viscous
 //! part `D·ω` is not included (the plant adds it as today).
 //!
-//! | law | torque opposing the motion | profile keys (proposed) |
+//! | law | torque opposing the motion | profile keys (`[motor.friction]`, ranges checked by the profile crate) |
 //! |---|---|---|
 //! | [`FrictionLaw::Karnopp`] (today's) | `Fs·sgn(ω)` when moving; holds up to `Fs` at rest (the plant's stick logic) | `coulomb_friction_nm` |
 //! | [`FrictionLaw::SmoothCoulomb`] | `Fs·tanh(ω/ω_ε)`: no sticking, the rotor creeps at `|ω| ≲ ω_ε` under torques below `Fs` | `friction.law = "smooth"`, `friction.creep_speed_rad_s` |
@@ -13,7 +13,7 @@
 //! The Karnopp law is discontinuous at `ω = 0` and needs the plant's stick state; the other
 //! two are smooth and only need an integrator that is stable for their slope at zero speed,
 //! `Fs_static/ω_ε` (N·m·s/rad): an explicit step `h` is stable for `h < 2·J·ω_ε/Fs_static`,
-//! so the plant should treat them semi-implicitly (see [`FrictionLaw::max_slope`]).
+//! so the plant sub-steps them (see [`FrictionLaw::max_slope`] and [`crate::lanes`]).
 
 /// A friction law (the Coulomb level `Fs` is the profile's `coulomb_friction_nm`).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -36,49 +36,7 @@ pub enum FrictionLaw {
     },
 }
 
-/// Why a law's parameters are not valid; the message names the key as proposed for profiles.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-#[error("friction.{key} = {value}: {reason}")]
-pub struct FrictionError {
-    /// The key (under `[motor.friction]`).
-    pub key: &'static str,
-    /// The value.
-    pub value: f64,
-    /// The rule it breaks.
-    pub reason: &'static str,
-}
-
 impl FrictionLaw {
-    /// Checks the parameters against the Coulomb level `fs_nm` (N·m): speeds finite and in
-    /// (0, 10] rad/s (a creep or Stribeck speed above 10 rad/s is not friction but a
-    /// viscous law), `Fs_static` finite and in `[Fs, 10·Fs]`.
-    pub fn validate(&self, fs_nm: f64) -> Result<(), FrictionError> {
-        let speed = |key: &'static str, v: f64| {
-            if v.is_finite() && v > 0.0 && v <= 10.0 {
-                Ok(())
-            } else {
-                Err(FrictionError { key, value: v, reason: "must be a finite speed in (0, 10] rad/s" })
-            }
-        };
-        match *self {
-            FrictionLaw::Karnopp => Ok(()),
-            FrictionLaw::SmoothCoulomb { creep_speed_rad_s } => speed("creep_speed_rad_s", creep_speed_rad_s),
-            FrictionLaw::Stribeck { static_nm, stribeck_speed_rad_s, creep_speed_rad_s } => {
-                speed("creep_speed_rad_s", creep_speed_rad_s)?;
-                speed("stribeck_speed_rad_s", stribeck_speed_rad_s)?;
-                if static_nm.is_finite() && static_nm >= fs_nm && static_nm <= 10.0 * fs_nm.max(0.0) {
-                    Ok(())
-                } else {
-                    Err(FrictionError {
-                        key: "static_nm",
-                        value: static_nm,
-                        reason: "must be finite, at least coulomb_friction_nm and at most 10 times it",
-                    })
-                }
-            }
-        }
-    }
-
     /// The friction torque opposing the motion at speed `omega` (rad/s), N·m, for Coulomb
     /// level `fs_nm`. Karnopp returns `Fs·sgn(ω)` (0 at rest: the plant's stick logic
     /// decides the torque there).
@@ -148,17 +106,6 @@ mod tests {
         let linear = 0.01 * 1e-4 / 0.01;
         assert!((f / linear - 1.0).abs() < 4e-5, "{f}");
         assert_eq!(SMOOTH.max_slope(0.01), Some(1.0));
-    }
-
-    #[test]
-    fn invalid_parameters_name_their_key() {
-        let e = FrictionLaw::SmoothCoulomb { creep_speed_rad_s: 0.0 }.validate(0.01).unwrap_err();
-        assert_eq!(e.key, "creep_speed_rad_s");
-        let e = FrictionLaw::Stribeck { static_nm: 0.005, stribeck_speed_rad_s: 0.05, creep_speed_rad_s: 0.01 }
-            .validate(0.01)
-            .unwrap_err();
-        assert!(e.to_string().starts_with("friction.static_nm = 0.005"), "{e}");
-        assert!(STRIBECK.validate(0.01).is_ok());
     }
 
     proptest! {

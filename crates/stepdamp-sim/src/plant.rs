@@ -16,8 +16,10 @@
 //! speed change that `Fs` alone makes in one integration step, so the model is never
 //! stiff. Integration is classical RK4 with the voltages held over the step.
 
+use crate::friction::FrictionLaw;
 use crate::lanes::{Integrator, StateLanes};
 use crate::profile::ProfileData;
+use stepdamp_profile::data::FrictionLawName;
 
 /// Plant parameters in SI units.
 #[derive(Clone, Debug, PartialEq)]
@@ -36,6 +38,8 @@ pub struct PlantParams {
     pub d: f64,
     /// Coulomb friction in N·m.
     pub fs: f64,
+    /// The law the Coulomb friction follows ([`FrictionLaw::Karnopp`]: the module doc).
+    pub friction: FrictionLaw,
     /// Detent harmonics, dense by order: `(A cos φ, A sin φ)` at index `k − 1`.
     pub detent: Vec<(f64, f64)>,
     /// Constant external load torque on the rotor in N·m (signed).
@@ -75,9 +79,18 @@ impl PlantParams {
             j: p.motor.inertia_kg_m2,
             d: p.motor.viscous_nm_s_per_rad,
             fs: p.motor.coulomb_friction_nm,
+            friction: friction_law(p),
             detent,
             load_torque_nm: 0.0,
         }
+    }
+
+    /// The smooth laws' step limit: the number of RK4 sub-steps a step of `h` s needs so
+    /// that each is within `J / max_slope` (the friction's time constant at rest, where
+    /// its slope is steepest), i.e. `h·λ ≤ 1` well inside RK4's real-axis stability bound
+    /// 2.78; 1 for Karnopp.
+    pub fn friction_substeps(&self, h: f64) -> u32 {
+        friction_substeps(self.friction, self.fs, 1.0 / self.j, h)
     }
 
     /// `Σ A_k sin(k θe + φ_k)` given `(sin θe, cos θe)` (detent torque is minus this), by
@@ -138,6 +151,32 @@ impl PlantParams {
         let mut lanes = StateLanes::from_states(&[*x]);
         it.rk4(&mut lanes, &[va], &[vb], &[self.load_torque_nm], h, band);
         lanes.lane(0)
+    }
+}
+
+/// [`PlantParams::friction_substeps`] from the law, `Fs` (N·m), `1/J` (1/(kg·m²)) and `h` (s).
+pub(crate) fn friction_substeps(law: FrictionLaw, fs: f64, inv_j: f64, h: f64) -> u32 {
+    match law.max_slope(fs) {
+        Some(slope) if slope > 0.0 && inv_j > 0.0 => {
+            let n = (h * slope * inv_j).ceil();
+            // NaN (a non-finite h) and absurd counts: one step (the run then diverges
+            // visibly rather than hanging).
+            if (1.0..=1e6).contains(&n) { n as u32 } else { 1 }
+        }
+        _ => 1,
+    }
+}
+
+/// The friction law of `[motor.friction]`. Missing parameters (a profile that did not go
+/// through validation) fall back to Karnopp rather than panic.
+fn friction_law(p: &ProfileData) -> FrictionLaw {
+    let f = &p.motor.friction;
+    match (f.law, f.creep_speed_rad_s, f.static_nm, f.stribeck_speed_rad_s) {
+        (FrictionLawName::Smooth, Some(creep), _, _) => FrictionLaw::SmoothCoulomb { creep_speed_rad_s: creep },
+        (FrictionLawName::Stribeck, Some(creep), Some(st), Some(ws)) => {
+            FrictionLaw::Stribeck { static_nm: st, stribeck_speed_rad_s: ws, creep_speed_rad_s: creep }
+        }
+        _ => FrictionLaw::Karnopp,
     }
 }
 
@@ -293,5 +332,108 @@ mod tests {
         let (a, b, c) = (run(1e-4), run(5e-5), run(2.5e-5));
         let ratio = (a - b) / (b - c);
         assert!(ratio > 12.0 && ratio < 20.0, "order ratio {ratio}");
+    }
+
+    /// The patent motor as a bare rotor under a load torque and the law `law`: windings
+    /// decoupled (`Km = 0`), no detent, no viscous friction.
+    fn bare_rotor(law: FrictionLaw, load: f64) -> PlantParams {
+        let mut p = patent();
+        p.detent.clear();
+        p.km = 0.0;
+        p.d = 0.0;
+        p.friction = law;
+        p.load_torque_nm = load;
+        p
+    }
+
+    fn run_for(p: &PlantParams, x0: PlantState, h: f64, t: f64) -> PlantState {
+        let band = p.stick_band(h);
+        let mut x = x0;
+        for _ in 0..(t / h).round() as usize {
+            x = p.rk4(&x, 0.0, 0.0, h, band);
+        }
+        x
+    }
+
+    #[test]
+    fn smooth_coulomb_creeps_at_the_speed_where_tanh_balances_the_torque() {
+        // Below Fs the rotor does not stick but creeps at ω = ω_ε·atanh(τ/Fs), the speed
+        // where friction balances the load. ω_ε = 1 mrad/s makes the law stiff at 20 kHz
+        // (13 sub-steps per period).
+        let law = FrictionLaw::SmoothCoulomb { creep_speed_rad_s: 1e-3 };
+        for frac in [0.3, 0.9, -0.6] {
+            let p = bare_rotor(law, frac * 0.01);
+            assert_eq!(p.friction_substeps(5e-5), 13);
+            let x = run_for(&p, PlantState::default(), 5e-5, 0.2);
+            let want = 1e-3 * f64::atanh(frac);
+            assert!((x.omega - want).abs() < 1e-9 * want.abs().max(1e-3), "τ = {frac} Fs: {} vs {want}", x.omega);
+        }
+    }
+
+    #[test]
+    fn stribeck_holds_below_its_break_away_torque_and_slips_above() {
+        let (fs, fst) = (0.01, 0.015);
+        let law = FrictionLaw::Stribeck { static_nm: fst, stribeck_speed_rad_s: 0.05, creep_speed_rad_s: 1e-3 };
+        // 2 % below Fs_static: it creeps below the Stribeck speed (on the rising tanh).
+        let p = bare_rotor(law, 0.98 * fst);
+        let x = run_for(&p, PlantState::default(), 5e-5, 0.3);
+        assert!(x.omega > 0.0 && x.omega < 0.01, "held: {x:?}");
+        assert!((law.friction_nm(fs, x.omega) - 0.98 * fst).abs() < 1e-9, "friction balances the load: {x:?}");
+        // 1 % above: it breaks away, friction falls to Fs and the rotor accelerates at
+        // least at (1.01 Fs_static − Fs)/J once past the Stribeck speed.
+        let p = bare_rotor(law, 1.01 * fst);
+        let x = run_for(&p, PlantState::default(), 5e-5, 0.3);
+        let at_least = (1.01 * fst - fs - (fst - fs) * (-1.0f64).exp()) / p.j * 0.1;
+        assert!(x.omega > at_least, "broke away: {x:?}, want > {at_least}");
+    }
+
+    #[test]
+    fn smooth_friction_converges_at_fourth_order() {
+        // A creep speed large enough for one sub-step at every h below: plain RK4, whose
+        // order the smooth law must keep (Karnopp's kink caps it).
+        let law = FrictionLaw::SmoothCoulomb { creep_speed_rad_s: 0.5 };
+        let mut p = patent();
+        p.friction = law;
+        let run = |h: f64| {
+            assert_eq!(p.friction_substeps(h), 1);
+            let band = p.stick_band(h);
+            let mut x = PlantState { i_a: 1.9, omega: -0.3, ..Default::default() };
+            for _ in 0..(0.01 / h).round() as usize {
+                x = p.rk4(&x, 1.0, 2.0, h, band);
+            }
+            x.theta
+        };
+        let (a, b, c) = (run(1e-4), run(5e-5), run(2.5e-5));
+        let ratio = (a - b) / (b - c);
+        assert!(ratio > 12.0 && ratio < 20.0, "order ratio {ratio}");
+    }
+
+    #[test]
+    fn sub_stepping_keeps_a_stiff_smooth_law_stable_and_converged() {
+        // ω_ε = 0.1 mrad/s: the law's time constant J/(Fs/ω_ε) = 0.4 µs, 125 times shorter
+        // than a 20 kHz period. Sub-stepped, the period step agrees with one four times
+        // finer, through a ring-down across ω = 0 with the windings driven.
+        let law = FrictionLaw::SmoothCoulomb { creep_speed_rad_s: 1e-4 };
+        let mut p = patent();
+        p.friction = law;
+        assert_eq!(p.friction_substeps(5e-5), 125);
+        let run = |h: f64| {
+            let band = p.stick_band(h);
+            let mut x = PlantState { omega: 2.0, ..Default::default() };
+            for _ in 0..(0.02 / h).round() as usize {
+                x = p.rk4(&x, 0.5, -0.3, h, band);
+            }
+            x
+        };
+        let (coarse, fine) = (run(5e-5), run(1.25e-5));
+        assert!(coarse.omega.is_finite() && coarse.omega.abs() < 10.0, "{coarse:?}");
+        assert!((coarse.theta - fine.theta).abs() < 1e-9, "{coarse:?} vs {fine:?}");
+        assert!((coarse.omega - fine.omega).abs() < 1e-6, "{coarse:?} vs {fine:?}");
+    }
+
+    #[test]
+    fn the_default_profile_has_karnopp_friction() {
+        assert_eq!(patent().friction, FrictionLaw::Karnopp);
+        assert_eq!(patent().friction_substeps(5e-5), 1);
     }
 }

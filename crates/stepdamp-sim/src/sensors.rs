@@ -11,14 +11,15 @@
 //!   `θ_read = θ + e·sin(θ + φ_e)` — a once-per-revolution angle error of amplitude `e` (rad),
 //!   before quantisation.
 //!
-//! Proposed profile keys (defaults = today's ideal sensors):
+//! Profile keys (defaults = today's ideal sensors; ranges checked by the profile crate,
+//! `stepdamp_profile::data::sim_limits`):
 //!
 //! | key | unit | range | default |
 //! |---|---|---|---|
 //! | `drive.current_offset_a = [o_a, o_b]` | A | each `|o| ≤` 10 % of `current_limit_a` | `[0, 0]` |
 //! | `drive.current_gain_error = [ε_a, ε_b]` | 1 | each in `[−0.2, 0.2]` | `[0, 0]` |
-//! | `encoder.eccentricity_rad` | rad | `[0, 0.01]` (≈ 16 counts of 4000) | `0` |
-//! | `encoder.eccentricity_phase_rad` | rad | `(−π, π]` | `0` |
+//! | `encoder.eccentricity_rad` | rad | `[0, 0.01]` (≈ 6 counts of 4000) | `0` |
+//! | `encoder.eccentricity_phase_rad` | rad | `[−π, π]` | `0` |
 
 /// Per-phase current-sensor errors.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -30,6 +31,13 @@ pub struct CurrentSensors {
 }
 
 impl CurrentSensors {
+    /// The profile's `drive.current_offset_a` and `drive.current_gain_error`; `None` for
+    /// ideal sensors (the loop then reads the currents untouched, bit for bit).
+    pub fn from_profile(p: &crate::profile::ProfileData) -> Option<Self> {
+        let s = CurrentSensors { offset_a: p.drive.current_offset_a, gain_error: p.drive.current_gain_error };
+        (s != CurrentSensors::default()).then_some(s)
+    }
+
     /// What the drive reads for true phase currents `(i_a, i_b)`, A.
     pub fn read(&self, i_a: f64, i_b: f64) -> (f64, f64) {
         ((1.0 + self.gain_error[0]) * i_a + self.offset_a[0], (1.0 + self.gain_error[1]) * i_b + self.offset_a[1])
@@ -43,18 +51,6 @@ impl CurrentSensors {
         let (s, c) = theta_e.sin_cos();
         (-(ra - i_a)) * s + (rb - i_b) * c
     }
-
-    /// Checks the proposed ranges; `limit_a` is the drive's current limit. Returns the key
-    /// and the reason of the first value out of range.
-    pub fn validate(&self, limit_a: f64) -> Result<(), (&'static str, &'static str)> {
-        if !self.offset_a.iter().all(|o| o.is_finite() && o.abs() <= 0.1 * limit_a) {
-            return Err(("drive.current_offset_a", "each offset must be finite and at most 10 % of current_limit_a"));
-        }
-        if !self.gain_error.iter().all(|g| g.is_finite() && g.abs() <= 0.2) {
-            return Err(("drive.current_gain_error", "each gain error must be finite and in [−0.2, 0.2]"));
-        }
-        Ok(())
-    }
 }
 
 /// A once-per-revolution encoder angle error.
@@ -67,20 +63,17 @@ pub struct Eccentricity {
 }
 
 impl Eccentricity {
+    /// The profile's `encoder.eccentricity_rad` and `encoder.eccentricity_phase_rad`;
+    /// `None` for a centred disc.
+    pub fn from_profile(p: &crate::profile::ProfileData) -> Option<Self> {
+        let e = &p.encoder;
+        (e.eccentricity_rad != 0.0)
+            .then_some(Eccentricity { amplitude_rad: e.eccentricity_rad, phase_rad: e.eccentricity_phase_rad })
+    }
+
     /// The angle the encoder reads (before quantisation) at mechanical angle `theta`, rad.
     pub fn read(&self, theta: f64) -> f64 {
         theta + self.amplitude_rad * (theta + self.phase_rad).sin()
-    }
-
-    /// Checks the proposed range `[0, 0.01]` rad and a finite phase.
-    pub fn validate(&self) -> Result<(), (&'static str, &'static str)> {
-        if !(self.amplitude_rad.is_finite() && (0.0..=0.01).contains(&self.amplitude_rad)) {
-            return Err(("encoder.eccentricity_rad", "must be in [0, 0.01] rad"));
-        }
-        if !self.phase_rad.is_finite() {
-            return Err(("encoder.eccentricity_phase_rad", "must be finite"));
-        }
-        Ok(())
     }
 }
 
@@ -132,18 +125,5 @@ mod tests {
         let err = |th: f64| e.read(th) - th;
         assert!((harmonic(err, 1.0) - 1e-3).abs() < 1e-12);
         assert!(harmonic(err, 2.0) < 1e-12);
-        assert!(e.validate().is_ok());
-        assert_eq!(
-            Eccentricity { amplitude_rad: 0.02, phase_rad: 0.0 }.validate().unwrap_err().0,
-            "encoder.eccentricity_rad"
-        );
-    }
-
-    #[test]
-    fn out_of_range_sensor_errors_name_their_key() {
-        let s = CurrentSensors { offset_a: [0.5, 0.0], gain_error: [0.0; 2] };
-        assert_eq!(s.validate(3.0).unwrap_err().0, "drive.current_offset_a");
-        let s = CurrentSensors { offset_a: [0.0; 2], gain_error: [0.0, f64::NAN] };
-        assert_eq!(s.validate(3.0).unwrap_err().0, "drive.current_gain_error");
     }
 }

@@ -147,7 +147,41 @@ fn runs_in_lock_step_are_bit_identical_to_runs_alone() {
     // A sweep integrates LANES runs per SIMD lane group; each must equal its run alone,
     // with noise, quantisation, a load (Coulomb sticking at the start), both modes and all
     // compensations, and a short last group (15 runs is not a multiple of LANES).
-    let m = patent();
+    assert_lock_step_matches_runs_alone(&patent());
+}
+
+#[test]
+fn runs_in_lock_step_are_bit_identical_to_runs_alone_with_smooth_friction_and_sensor_errors() {
+    // The sub-stepped smooth laws and the sensor models keep lanes independent too.
+    for law in ["smooth", "stribeck"] {
+        assert_lock_step_matches_runs_alone(&real_drive(law));
+    }
+}
+
+/// The patent motor as a real drive shows it: smooth (creeping) or Stribeck friction,
+/// current-sensor offsets and gain mismatch, an eccentric encoder disc.
+fn real_drive(law: &str) -> Profile {
+    use crate::profile::data::FrictionLawName;
+    patent()
+        .edited(law, |d| {
+            let f = &mut d.motor.friction;
+            f.creep_speed_rad_s = Some(2e-3);
+            if law == "smooth" {
+                f.law = FrictionLawName::Smooth;
+            } else {
+                f.law = FrictionLawName::Stribeck;
+                f.static_nm = Some(1.5 * d.motor.coulomb_friction_nm);
+                f.stribeck_speed_rad_s = Some(0.05);
+            }
+            d.drive.current_offset_a = [0.03, -0.02];
+            d.drive.current_gain_error = [0.02, -0.01];
+            d.encoder.eccentricity_rad = 2e-3;
+            d.encoder.eccentricity_phase_rad = 0.4;
+        })
+        .unwrap()
+}
+
+fn assert_lock_step_matches_runs_alone(m: &Profile) {
     let spec = SweepSpec {
         speeds_rad_s: vec![2.0, 8.4, 30.0],
         modes: vec![Mode::OpenLoop, Mode::Servo],
@@ -160,13 +194,13 @@ fn runs_in_lock_step_are_bit_identical_to_runs_alone() {
             ..SimOptions::default()
         },
     };
-    let rows = sweep(&m, &m, &spec, &|| {}).unwrap();
+    let rows = sweep(m, m, &spec, &|| {}).unwrap();
     assert_eq!(rows.len(), 15);
     let mut i = 0;
     for (mode, comp) in spec.pairs() {
         for &w in &spec.speeds_rad_s {
             let opts = SimOptions { seed: sweep::derived_seed(spec.options.seed, i as u64), ..spec.options };
-            let mut lp = ClosedLoop::new(&m, &m, mode, comp, &opts).unwrap();
+            let mut lp = ClosedLoop::new(m, m, mode, comp, &opts).unwrap();
             let alone = run(&mut lp, &RunSpec { speed_rad_s: w, ..spec.run }, m.drive.pwm_hz, |_, _| {}).unwrap();
             let r = &rows[i];
             assert_eq!((r.mode, r.compensation, r.speed_cmd_rad_s), (mode, comp, w));
@@ -344,4 +378,111 @@ fn estimated_angle_is_no_worse_than_the_patent_with_r_and_km_off_by_20_percent()
     }
     // README quotes this figure.
     println!("worst ratio of estimated to patent peak-to-peak error over 16 sweeps: {worst_ratio:.2}");
+}
+
+/// Samples of a run of `m` at `speed` rad/s in `mode` without compensation, after `skip_s`.
+fn records(m: &Profile, mode: Mode, speed: f64, duration_s: f64, skip_s: f64) -> Vec<PeriodRecord> {
+    let mut lp = ClosedLoop::new(m, m, mode, Compensation::Off, &SimOptions::default()).unwrap();
+    let n = (duration_s * m.drive.pwm_hz).round() as usize;
+    let skip = (skip_s * m.drive.pwm_hz).round() as usize;
+    (0..n).map(|_| lp.period(speed)).skip(skip).collect()
+}
+
+#[test]
+fn a_current_sensor_offset_is_a_dc_error_of_the_phase_currents() {
+    // At standstill the current loop holds the *measured* currents at the holding vector,
+    // so the true phase currents sit off it by minus the offsets (the loop's integral
+    // action removes the error it sees), and the sensors read true + offset.
+    let offset = [0.1, -0.06];
+    let m = patent().edited("offset", |d| d.drive.current_offset_a = offset).unwrap();
+    let ideal = records(&patent(), Mode::OpenLoop, 0.0, 0.3, 0.2);
+    let off = records(&m, Mode::OpenLoop, 0.0, 0.3, 0.2);
+    let mean = |r: &[PeriodRecord], f: fn(&PeriodRecord) -> f64| r.iter().map(f).sum::<f64>() / r.len() as f64;
+    for (ph, want) in offset.iter().enumerate() {
+        let true_i: fn(&PeriodRecord) -> f64 = if ph == 0 { |r| r.plant.i_a } else { |r| r.plant.i_b };
+        let read: fn(&PeriodRecord) -> f64 =
+            if ph == 0 { |r| f64::from(r.measurement.i_a_a) } else { |r| f64::from(r.measurement.i_b_a) };
+        let shift = mean(&off, true_i) - mean(&ideal, true_i);
+        assert!(
+            (shift + want).abs() < 0.03 * want.abs(),
+            "phase {ph}: true current shifted by {shift}, want {}",
+            -want
+        );
+        for r in &off {
+            assert!((read(r) - true_i(r) - want).abs() < 1e-6, "phase {ph}: read {} true {}", read(r), true_i(r));
+        }
+    }
+}
+
+#[test]
+fn a_current_sensor_gain_error_scales_what_the_drive_reads() {
+    let gain = [0.05, -0.1];
+    let m = patent().edited("gain", |d| d.drive.current_gain_error = gain).unwrap();
+    let recs = records(&m, Mode::OpenLoop, 5.0, 0.1, 0.05);
+    let mut checked = 0;
+    for r in recs.iter().filter(|r| r.plant.i_a.abs() > 0.5 && r.plant.i_b.abs() > 0.5) {
+        assert!((f64::from(r.measurement.i_a_a) / r.plant.i_a - 1.0 - gain[0]).abs() < 1e-6);
+        assert!((f64::from(r.measurement.i_b_a) / r.plant.i_b - 1.0 - gain[1]).abs() < 1e-6);
+        checked += 1;
+    }
+    assert!(checked > 100, "{checked}");
+}
+
+#[test]
+fn encoder_eccentricity_is_a_once_per_revolution_angle_error() {
+    // In servo mode at 3 rad/s the encoder's angle minus the true one is e·sin(θ + φ_e)
+    // plus the quantisation staircase (under one count, 1.6 mrad, and with no component
+    // at one per revolution to speak of over a whole number of turns).
+    let (e, phase) = (4e-3, 0.7);
+    let m = patent()
+        .edited("eccentric", |d| {
+            d.encoder.eccentricity_rad = e;
+            d.encoder.eccentricity_phase_rad = phase;
+        })
+        .unwrap();
+    let recs = records(&m, Mode::Servo, 3.0, 5.0, 0.5);
+    let per_count = std::f64::consts::TAU / f64::from(m.encoder.counts_per_rev);
+    let theta0 = recs[0].plant.theta;
+    let turns = ((recs.last().unwrap().plant.theta - theta0) / std::f64::consts::TAU).floor();
+    assert!(turns >= 1.0, "{turns}");
+    let whole: Vec<&PeriodRecord> =
+        recs.iter().filter(|r| r.plant.theta < theta0 + turns * std::f64::consts::TAU).collect();
+    let (mut s, mut c) = (0.0, 0.0);
+    for r in &whole {
+        let err = f64::from(r.measurement.encoder_count) * per_count - r.plant.theta;
+        s += err * r.plant.theta.sin();
+        c += err * r.plant.theta.cos();
+    }
+    let n = whole.len() as f64;
+    // e·sin(θ + φ) = e cos φ · sin θ + e sin φ · cos θ.
+    let (a, b) = (2.0 * s / n, 2.0 * c / n);
+    assert!((a.hypot(b) - e).abs() < 0.05 * e, "amplitude {} vs {e}", a.hypot(b));
+    assert!((b.atan2(a) - phase).abs() < 0.05, "phase {} vs {phase}", b.atan2(a));
+    // Without eccentricity the same measure is small.
+    let ideal = records(&patent(), Mode::Servo, 3.0, 2.6, 0.5);
+    let (mut s0, mut c0) = (0.0, 0.0);
+    for r in &ideal {
+        let err = f64::from(r.measurement.encoder_count) * per_count - r.plant.theta;
+        s0 += err * r.plant.theta.sin();
+        c0 += err * r.plant.theta.cos();
+    }
+    let n0 = ideal.len() as f64;
+    assert!((2.0 * s0 / n0).hypot(2.0 * c0 / n0) < 0.1 * e);
+}
+
+#[test]
+fn a_sweep_runs_a_profile_with_every_real_drive_model() {
+    for law in ["smooth", "stribeck"] {
+        let m = real_drive(law);
+        let spec = SweepSpec {
+            speeds_rad_s: vec![1.0, 4.0],
+            modes: vec![Mode::OpenLoop, Mode::Servo],
+            compensations: vec![Compensation::Patent],
+            run: RunSpec { duration_s: 0.4, window_s: 0.1, ..RunSpec::at(1.0) },
+            options: SimOptions::default(),
+        };
+        let rows = sweep(&m, &m, &spec, &|| {}).unwrap();
+        assert_eq!(rows.len(), 4);
+        assert!(rows.iter().all(|r| r.vel_err_rms_rad_s.is_finite() && !r.lost_sync), "{law}: {rows:?}");
+    }
 }
