@@ -6,6 +6,7 @@ use std::process::{Command, Output};
 use stepdamp_identify::conditions::InertiaMode;
 use stepdamp_identify::fit::{FitOptions, FitReport, fit};
 use stepdamp_identify::log::{LogOptions, read_log};
+use stepdamp_identify::plan::{PlanOptions, plan};
 use stepdamp_identify::validation::{default_max_order, validate};
 use stepdamp_profile::Profile;
 
@@ -143,4 +144,21 @@ fn assert_close(got: &serde_json::Value, want: &serde_json::Value) {
         }
         _ => assert_eq!(got, want),
     }
+}
+
+#[test]
+fn identify_plan_prints_the_library_plan_and_its_json() {
+    let motor = Profile::preset("patent-motor").unwrap();
+    let po = PlanOptions { orders: vec![1, 2, 4], electrical_periods: 12.0, ..PlanOptions::default() };
+    let want = plan(&motor, &po).unwrap();
+    let args = ["identify", "plan", "--motor", "patent-motor", "--periods", "12"];
+    let text = String::from_utf8(stepdamp(&args).stdout).unwrap();
+    assert_eq!(text, format!("{want}\n"));
+    assert!(text.contains("run-4-rev") && text.contains("total "), "{text}");
+    let mut json = args.to_vec();
+    json.extend(["--format", "json"]);
+    let text = String::from_utf8(stepdamp(&json).stdout).unwrap();
+    assert_eq!(text.lines().count(), 1, "one line of JSON: {text}");
+    let got: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_close(&got, &serde_json::to_value(&want).unwrap());
 }

@@ -116,6 +116,9 @@ struct PlanArgs {
     /// Electrical periods of steady running per run.
     #[arg(long, default_value_t = 40.0, allow_negative_numbers = true)]
     periods: f64,
+    /// text, or json: the plan (stepdamp_identify::plan::Plan) as one line of JSON.
+    #[arg(long, value_enum, default_value_t)]
+    format: Format,
 }
 
 /// `stepdamp identify run`.
@@ -228,11 +231,10 @@ fn run_plan_cmd(a: PlanArgs) -> Result<()> {
     let motor = load_motor(&a.motor)?;
     let orders = parse_orders(&a.orders)?;
     let p = plan(&motor, &plan_options(&orders, a.periods)?)?;
-    out!("{}", p.describe());
-    outln!(
-        "total {:.1} s of logging; record t_s, theta_fb_rad, i_q_a (or i_a_a, i_b_a) every control period",
-        p.total_s()
-    );
+    match a.format {
+        Format::Text => outln!("{p}"),
+        Format::Json => print_json(&p)?,
+    }
     Ok(())
 }
 

@@ -56,13 +56,13 @@ pub(super) fn simulate_and_identify(
     po: &PlanOptions,
     p: &Plan,
 ) -> Result<()> {
-    out!("{}", p.describe());
+    outln!("{p}");
     let pb = progress(p.runs.len() as u64, global.quiet, "simulating");
     let t0 = Instant::now();
     let done = run_plan(motor, motor, &a.out, po, &|| pb.inc(1))?;
     pb.finish_and_clear();
     outln!("simulated {:.1} s of runs in {:.2} s", p.total_s(), t0.elapsed().as_secs_f64());
-    write_atomic(&a.out.join("plan.txt"), p.describe().as_bytes())?;
+    write_atomic(&a.out.join("plan.txt"), format!("{p}\n").as_bytes())?;
     // The profile the runs were recorded with (its [servo] section is the plan's): the
     // base profile for `identify`, so the fit knows the servo bandwidth of the logs.
     let base_toml = a.out.join("base.toml");
