@@ -162,3 +162,37 @@ fn identify_plan_prints_the_library_plan_and_its_json() {
     let got: serde_json::Value = serde_json::from_str(&text).unwrap();
     assert_close(&got, &serde_json::to_value(&want).unwrap());
 }
+
+#[test]
+fn identify_static_prints_the_library_report_and_its_json() {
+    use stepdamp_identify::static_curve::{StaticReport, TorqueSign, analyse, read_table};
+    let dir = tempfile::tempdir().unwrap();
+    let table = dir.path().join("curve.csv");
+    let mut s = String::from("theta_rad,torque_nm\n");
+    for i in 0..400 {
+        let th = i as f64 / 400.0 * 2.0 * std::f64::consts::TAU / 50.0;
+        let tq = -0.02 * (200.0 * th + 0.2).sin() - 0.005 * (50.0 * th - 1.0).sin() + 0.001;
+        s.push_str(&format!("{th},{tq}\n"));
+    }
+    std::fs::write(&table, s).unwrap();
+    let (t, out) = (table.to_str().unwrap(), dir.path().join("s.toml"));
+    let args = ["identify", "static", "--table", t, "--sign", "on-rotor", "--motor", "patent-motor"];
+    let pts = read_table(&table).unwrap();
+    let curve = analyse(&pts, 50, TorqueSign::OnRotor, 4, t).unwrap();
+    let want = StaticReport::new(t, pts.len(), &curve, &[1, 2, 4]);
+    assert_eq!(want.harmonics.len(), 3);
+
+    let mut text_args = args.to_vec();
+    text_args.extend(["--out", out.to_str().unwrap()]);
+    let text = String::from_utf8(stepdamp(&text_args).stdout).unwrap();
+    assert!(text.starts_with(&format!("{want}\n")), "want\n{want}\nin\n{text}");
+
+    let json_out = dir.path().join("j.toml");
+    let mut json_args = args.to_vec();
+    json_args.extend(["--out", json_out.to_str().unwrap(), "--format", "json"]);
+    let text = String::from_utf8(stepdamp(&json_args).stdout).unwrap();
+    assert_eq!(text.lines().count(), 1, "one line of JSON: {text}");
+    assert!(json_out.exists(), "the profile is written with --format json too");
+    let got: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_close(&got, &serde_json::to_value(&want).unwrap());
+}

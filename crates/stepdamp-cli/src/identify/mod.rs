@@ -24,7 +24,7 @@ use stepdamp_identify::model::Model;
 use stepdamp_identify::plan::{Plan, PlanOptions, plan, run_plan};
 use stepdamp_identify::refine::{PERIODIC_ORDERS, RefineOptions, Refinement, refine, remaining_ripple_nm, series_nm};
 use stepdamp_identify::spectrum::order_spectrum;
-use stepdamp_identify::static_curve::{TorqueSign, analyse, read_table};
+use stepdamp_identify::static_curve::{StaticReport, TorqueSign, analyse, read_table};
 use stepdamp_identify::validation::Validation;
 use stepdamp_sim::Profile;
 
@@ -179,6 +179,10 @@ struct StaticArgs {
     /// Name of the new profile (default: base name + "-static").
     #[arg(long)]
     name: Option<String>,
+    /// text, or json: the analysis (stepdamp_identify::static_curve::StaticReport) as one
+    /// line of JSON on stdout, nothing else (the profile is written the same).
+    #[arg(long, value_enum, default_value_t)]
+    format: Format,
 }
 
 /// Runs `stepdamp identify`.

@@ -241,7 +241,8 @@ pub(super) fn run_static_cmd(a: StaticArgs) -> Result<()> {
     let kmax = *orders.iter().max().expect("parse_orders returns at least one");
     let src = a.table.display().to_string();
     let c = analyse(&pts, base.motor.pole_pairs, sign, kmax, &src).map_err(|e| anyhow!("{e}"))?;
-    let picked = c.select(&orders);
+    let report = StaticReport::new(&src, pts.len(), &c, &orders);
+    let picked = &report.harmonics;
     if picked.len() < orders.len() {
         let missing: Vec<String> =
             orders.iter().filter(|&&k| picked.iter().all(|h| h.order != k)).map(u16::to_string).collect();
@@ -253,12 +254,10 @@ pub(super) fn run_static_cmd(a: StaticArgs) -> Result<()> {
             missing.join(", ")
         );
     }
-    outln!("{src}: {} points, {} electrical periods", pts.len(), c.electrical_periods);
-    outln!("  order   amplitude mN·m   phase rad");
-    for h in &picked {
-        outln!("  {:>5}   {:10.4}       {:+8.4}", h.order, 1e3 * h.amplitude_nm, h.phase_rad);
+    let json = a.format == Format::Json;
+    if !json {
+        outln!("{report}");
     }
-    outln!("  mean torque {:.4} mN·m, rest (other orders) {:.4} mN·m RMS", 1e3 * c.mean_nm, 1e3 * c.rest_rms_nm);
     let mut model = Model::of_profile(&base);
     model.detent = picked
         .iter()
@@ -272,6 +271,10 @@ pub(super) fn run_static_cmd(a: StaticArgs) -> Result<()> {
     let out_s = a.out.display().to_string();
     let profile = model.apply_to(&base, Some(&name), &out_s).map_err(|e| anyhow!("{e}"))?;
     write_atomic(&a.out, profile.to_toml_string().as_bytes())?;
-    outln!("wrote {out_s} (friction kept from the base profile: a static table does not measure it)");
+    if json {
+        print_json(&report)?;
+    } else {
+        outln!("wrote {out_s} (friction kept from the base profile: a static table does not measure it)");
+    }
     Ok(())
 }
