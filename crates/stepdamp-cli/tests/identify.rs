@@ -196,3 +196,47 @@ fn identify_static_prints_the_library_report_and_its_json() {
     let got: serde_json::Value = serde_json::from_str(&text).unwrap();
     assert_close(&got, &serde_json::to_value(&want).unwrap());
 }
+
+#[test]
+fn identify_run_refine_json_is_the_library_run_report_and_the_summary_its_rows() {
+    use stepdamp_identify::model::Model;
+    use stepdamp_identify::refine::{RefineOptions, RefinementReport, RunReport, refine};
+    let dir = tempfile::tempdir().unwrap();
+    let cli_dir = dir.path().join("cli");
+    let o = cli_dir.to_str().unwrap();
+    let args = ["identify", "run", "--motor", "patent-motor", "--out", o, "--periods", "6", "--refine"];
+    let mut json = args.to_vec();
+    json.extend(["--iterations", "1", "--format", "json"]);
+    let text = String::from_utf8(stepdamp(&json).stdout).unwrap();
+    assert_eq!(text.lines().count(), 1, "one line of JSON: {text}");
+    let got: serde_json::Value = serde_json::from_str(&text).unwrap();
+
+    let motor = Profile::preset("patent-motor").unwrap();
+    let po = PlanOptions { orders: vec![1, 2, 4], electrical_periods: 6.0, ..PlanOptions::default() };
+    let p = plan(&motor, &po).unwrap();
+    // The CLI's logs (the fit report names them), in the plan's order.
+    let files: Vec<PathBuf> = p.runs.iter().map(|r| cli_dir.join(format!("{}.csv", r.name))).collect();
+    let opts = LogOptions::new(motor.motor.pole_pairs);
+    let logs: Vec<_> = files.iter().map(|f| read_log(f, &opts).unwrap()).collect();
+    let fo = FitOptions::for_profile(&p.profile, &[1, 2, 4]);
+    let f0 = fit(&logs, &fo).unwrap();
+    let ro = RefineOptions { max_iterations: 1, ..RefineOptions::default() };
+    let r = refine(&motor, &p, &Model::from_fit(&f0), Some(&f0), &fo, &ro, &|| {}).unwrap();
+    let refinement = RefinementReport::new(&motor, &f0, &r);
+    let want = RunReport { plan: p, fit: Some(FitReport::new(&motor.name, f0)), refinement: Some(refinement) };
+    assert_close(&got, &serde_json::to_value(&want).unwrap());
+
+    // refine-summary.csv holds the report's summary rows.
+    let csv = std::fs::read_to_string(cli_dir.join("refine-summary.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some("quantity,order,unit,motor,identified,refined"));
+    let rows = &want.refinement.as_ref().unwrap().summary;
+    assert_eq!(lines.clone().count(), rows.len(), "{csv}");
+    let num = |c: &str| (!c.is_empty()).then(|| c.parse::<f64>().unwrap());
+    for (line, row) in lines.zip(rows) {
+        let c: Vec<&str> = line.split(',').collect();
+        assert_eq!(c.len(), 6, "{line}");
+        assert_eq!((c[0], c[1].parse().ok(), c[2]), (row.quantity, row.order, row.unit), "{line}");
+        assert_eq!([num(c[3]), num(c[4]), num(c[5])], [row.motor, row.identified, row.refined], "{line}");
+    }
+}

@@ -14,7 +14,6 @@ use anyhow::{Result, anyhow, bail};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use rayon::prelude::*;
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use stepdamp_identify::conditions::InertiaMode;
@@ -22,7 +21,9 @@ use stepdamp_identify::fit::{Effort, Fit, FitOptions, FitReport, fit};
 use stepdamp_identify::log::{LogOptions, RunLog, read_log};
 use stepdamp_identify::model::Model;
 use stepdamp_identify::plan::{Plan, PlanOptions, plan, run_plan};
-use stepdamp_identify::refine::{PERIODIC_ORDERS, RefineOptions, Refinement, refine, remaining_ripple_nm, series_nm};
+use stepdamp_identify::refine::{
+    RefineOptions, Refinement, RefinementReport, RunReport, refine, remaining_ripple_nm, series_nm,
+};
 use stepdamp_identify::spectrum::order_spectrum;
 use stepdamp_identify::static_curve::{StaticReport, TorqueSign, analyse, read_table};
 use stepdamp_identify::validation::Validation;
@@ -154,6 +155,11 @@ struct RunArgs {
     /// Most refinement iterations.
     #[arg(long, default_value_t = 3, allow_negative_numbers = true)]
     iterations: i64,
+    /// text, or json: the run's result (stepdamp_identify::refine::RunReport: the plan, and
+    /// with --refine the fit's report and the refinement) as one line of JSON on stdout,
+    /// nothing else (the files are written the same).
+    #[arg(long, value_enum, default_value_t)]
+    format: Format,
 }
 
 /// `stepdamp identify static`.
@@ -256,6 +262,7 @@ fn default_name(base: &Profile, suffix: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::fmt::Write as _;
 
     fn args(v: &[&str]) -> IdentifyArgs {
         use clap::Parser;
