@@ -6,6 +6,7 @@ use std::process::{Command, Output};
 use stepdamp_identify::conditions::InertiaMode;
 use stepdamp_identify::fit::{FitOptions, FitReport, fit};
 use stepdamp_identify::log::{LogOptions, read_log};
+use stepdamp_identify::plan::{PlanOptions, plan};
 use stepdamp_identify::validation::{default_max_order, validate};
 use stepdamp_profile::Profile;
 
@@ -142,5 +143,100 @@ fn assert_close(got: &serde_json::Value, want: &serde_json::Value) {
             a.iter().for_each(|(k, x)| assert_close(x, &b[k]));
         }
         _ => assert_eq!(got, want),
+    }
+}
+
+#[test]
+fn identify_plan_prints_the_library_plan_and_its_json() {
+    let motor = Profile::preset("patent-motor").unwrap();
+    let po = PlanOptions { orders: vec![1, 2, 4], electrical_periods: 12.0, ..PlanOptions::default() };
+    let want = plan(&motor, &po).unwrap();
+    let args = ["identify", "plan", "--motor", "patent-motor", "--periods", "12"];
+    let text = String::from_utf8(stepdamp(&args).stdout).unwrap();
+    assert_eq!(text, format!("{want}\n"));
+    assert!(text.contains("run-4-rev") && text.contains("total "), "{text}");
+    let mut json = args.to_vec();
+    json.extend(["--format", "json"]);
+    let text = String::from_utf8(stepdamp(&json).stdout).unwrap();
+    assert_eq!(text.lines().count(), 1, "one line of JSON: {text}");
+    let got: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_close(&got, &serde_json::to_value(&want).unwrap());
+}
+
+#[test]
+fn identify_static_prints_the_library_report_and_its_json() {
+    use stepdamp_identify::static_curve::{StaticReport, TorqueSign, analyse, read_table};
+    let dir = tempfile::tempdir().unwrap();
+    let table = dir.path().join("curve.csv");
+    let mut s = String::from("theta_rad,torque_nm\n");
+    for i in 0..400 {
+        let th = i as f64 / 400.0 * 2.0 * std::f64::consts::TAU / 50.0;
+        let tq = -0.02 * (200.0 * th + 0.2).sin() - 0.005 * (50.0 * th - 1.0).sin() + 0.001;
+        s.push_str(&format!("{th},{tq}\n"));
+    }
+    std::fs::write(&table, s).unwrap();
+    let (t, out) = (table.to_str().unwrap(), dir.path().join("s.toml"));
+    let args = ["identify", "static", "--table", t, "--sign", "on-rotor", "--motor", "patent-motor"];
+    let pts = read_table(&table).unwrap();
+    let curve = analyse(&pts, 50, TorqueSign::OnRotor, 4, t).unwrap();
+    let want = StaticReport::new(t, pts.len(), &curve, &[1, 2, 4]);
+    assert_eq!(want.harmonics.len(), 3);
+
+    let mut text_args = args.to_vec();
+    text_args.extend(["--out", out.to_str().unwrap()]);
+    let text = String::from_utf8(stepdamp(&text_args).stdout).unwrap();
+    assert!(text.starts_with(&format!("{want}\n")), "want\n{want}\nin\n{text}");
+
+    let json_out = dir.path().join("j.toml");
+    let mut json_args = args.to_vec();
+    json_args.extend(["--out", json_out.to_str().unwrap(), "--format", "json"]);
+    let text = String::from_utf8(stepdamp(&json_args).stdout).unwrap();
+    assert_eq!(text.lines().count(), 1, "one line of JSON: {text}");
+    assert!(json_out.exists(), "the profile is written with --format json too");
+    let got: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_close(&got, &serde_json::to_value(&want).unwrap());
+}
+
+#[test]
+fn identify_run_refine_json_is_the_library_run_report_and_the_summary_its_rows() {
+    use stepdamp_identify::model::Model;
+    use stepdamp_identify::refine::{RefineOptions, RefinementReport, RunReport, refine};
+    let dir = tempfile::tempdir().unwrap();
+    let cli_dir = dir.path().join("cli");
+    let o = cli_dir.to_str().unwrap();
+    let args = ["identify", "run", "--motor", "patent-motor", "--out", o, "--periods", "6", "--refine"];
+    let mut json = args.to_vec();
+    json.extend(["--iterations", "1", "--format", "json"]);
+    let text = String::from_utf8(stepdamp(&json).stdout).unwrap();
+    assert_eq!(text.lines().count(), 1, "one line of JSON: {text}");
+    let got: serde_json::Value = serde_json::from_str(&text).unwrap();
+
+    let motor = Profile::preset("patent-motor").unwrap();
+    let po = PlanOptions { orders: vec![1, 2, 4], electrical_periods: 6.0, ..PlanOptions::default() };
+    let p = plan(&motor, &po).unwrap();
+    // The CLI's logs (the fit report names them), in the plan's order.
+    let files: Vec<PathBuf> = p.runs.iter().map(|r| cli_dir.join(format!("{}.csv", r.name))).collect();
+    let opts = LogOptions::new(motor.motor.pole_pairs);
+    let logs: Vec<_> = files.iter().map(|f| read_log(f, &opts).unwrap()).collect();
+    let fo = FitOptions::for_profile(&p.profile, &[1, 2, 4]);
+    let f0 = fit(&logs, &fo).unwrap();
+    let ro = RefineOptions { max_iterations: 1, ..RefineOptions::default() };
+    let r = refine(&motor, &p, &Model::from_fit(&f0), Some(&f0), &fo, &ro, &|| {}).unwrap();
+    let refinement = RefinementReport::new(&motor, &f0, &r);
+    let want = RunReport { plan: p, fit: Some(FitReport::new(&motor.name, f0)), refinement: Some(refinement) };
+    assert_close(&got, &serde_json::to_value(&want).unwrap());
+
+    // refine-summary.csv holds the report's summary rows.
+    let csv = std::fs::read_to_string(cli_dir.join("refine-summary.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some("quantity,order,unit,motor,identified,refined"));
+    let rows = &want.refinement.as_ref().unwrap().summary;
+    assert_eq!(lines.clone().count(), rows.len(), "{csv}");
+    let num = |c: &str| (!c.is_empty()).then(|| c.parse::<f64>().unwrap());
+    for (line, row) in lines.zip(rows) {
+        let c: Vec<&str> = line.split(',').collect();
+        assert_eq!(c.len(), 6, "{line}");
+        assert_eq!((c[0], c[1].parse().ok(), c[2]), (row.quantity, row.order, row.unit), "{line}");
+        assert_eq!([num(c[3]), num(c[4]), num(c[5])], [row.motor, row.identified, row.refined], "{line}");
     }
 }

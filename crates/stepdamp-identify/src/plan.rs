@@ -68,7 +68,7 @@ impl Default for PlanOptions {
 }
 
 /// One run to record.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct PlannedRun {
     /// File stem of its log, e.g. `run-1-fwd-1.017rad_s`.
     pub name: String,
@@ -84,8 +84,9 @@ pub struct PlannedRun {
     pub reason: String,
 }
 
-/// The plan.
-#[derive(Clone, Debug, PartialEq)]
+/// The plan. Its `Display` is what `stepdamp identify plan` prints (settings, runs with
+/// their reasons, notes, total logging time); `Serialize` is its `--format json`.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Plan {
     /// The base profile with the servo settings of the plan (what the drive must run).
     pub profile: Profile,
@@ -106,39 +107,44 @@ pub struct Plan {
 }
 
 impl Plan {
-    /// The plan as text: settings, runs with their reasons, notes.
-    pub fn describe(&self) -> String {
-        use std::fmt::Write;
-        let mut s = String::new();
-        let _ = writeln!(
-            s,
-            "identification plan for {}: servo mode, detent compensation off, {} encoder counts/rev",
-            self.profile.name, self.profile.encoder.counts_per_rev
-        );
-        let _ = writeln!(
-            s,
-            "servo: position-loop bandwidth {:.1} Hz, velocity filter {:.1} Hz",
-            self.servo_bandwidth_hz, self.velocity_filter_hz
-        );
-        let _ = writeln!(s, "  why: {}", self.servo_reason);
-        let _ = writeln!(s, "runs:");
-        for r in &self.runs {
-            let _ = writeln!(
-                s,
-                "  {:<28} {:+8.4} rad/s  {:6.2} s (standstill {:.2} s, ramp {:.2} s)",
-                r.name, r.speed_rad_s, r.duration_s, r.dwell_s, r.ramp_s
-            );
-            let _ = writeln!(s, "      why: {}", r.reason);
-        }
-        for n in &self.notes {
-            let _ = writeln!(s, "note: {n}");
-        }
-        s
-    }
-
     /// Total simulated time, s.
     pub fn total_s(&self) -> f64 {
         self.runs.iter().map(|r| r.duration_s).sum()
+    }
+}
+
+impl std::fmt::Display for Plan {
+    /// The plan as text: settings, runs with their reasons, notes, then the total logging
+    /// time ([`Plan::total_s`]) and the signals to record.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(
+            f,
+            "identification plan for {}: servo mode, detent compensation off, {} encoder counts/rev",
+            self.profile.name, self.profile.encoder.counts_per_rev
+        )?;
+        writeln!(
+            f,
+            "servo: position-loop bandwidth {:.1} Hz, velocity filter {:.1} Hz",
+            self.servo_bandwidth_hz, self.velocity_filter_hz
+        )?;
+        writeln!(f, "  why: {}", self.servo_reason)?;
+        writeln!(f, "runs:")?;
+        for r in &self.runs {
+            writeln!(
+                f,
+                "  {:<28} {:+8.4} rad/s  {:6.2} s (standstill {:.2} s, ramp {:.2} s)",
+                r.name, r.speed_rad_s, r.duration_s, r.dwell_s, r.ramp_s
+            )?;
+            writeln!(f, "      why: {}", r.reason)?;
+        }
+        for n in &self.notes {
+            writeln!(f, "note: {n}")?;
+        }
+        write!(
+            f,
+            "total {:.1} s of logging; record t_s, theta_fb_rad, i_q_a (or i_a_a, i_b_a) every control period",
+            self.total_s()
+        )
     }
 }
 
@@ -307,8 +313,15 @@ mod tests {
         let rate = speeds[0] * 4000.0 / TAU;
         assert!((rate - wb).abs() < 1e-6 * wb);
         assert!(plan.runs.iter().all(|r| !r.reason.is_empty() && r.duration_s > 2.0));
-        let text = plan.describe();
+        let text = plan.to_string();
         assert!(text.contains("why") && text.contains("run-4-rev"), "{text}");
+        assert!(
+            text.ends_with(&format!(
+                "total {:.1} s of logging; record t_s, theta_fb_rad, i_q_a (or i_a_a, i_b_a) every control period",
+                plan.total_s()
+            )),
+            "{text}"
+        );
     }
 
     #[test]

@@ -35,6 +35,9 @@
 //!    (the difference between `id1.toml`'s feed-forward and what the loop needed).
 //! 4. Repeat 2–3 with the new profile while the remaining ripple keeps falling.
 
+mod report;
+pub use report::{RefinementReport, ReportStep, RunReport, SummaryRow};
+
 use crate::fit::{Fit, FitError, FitOptions, fit};
 use crate::model::Model;
 use crate::plan::{Plan, simulate_plan};

@@ -54,7 +54,7 @@ pub enum TorqueSign {
 }
 
 /// A harmonic from the table.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct StaticHarmonic {
     /// Order `k`.
     pub order: u16,
@@ -83,6 +83,55 @@ impl StaticCurve {
     /// above half the number of points, with `P` periods) are left out.
     pub fn select(&self, orders: &[u16]) -> Vec<StaticHarmonic> {
         orders.iter().filter_map(|&k| self.harmonics.iter().find(|h| h.order == k).copied()).collect()
+    }
+}
+
+/// What `stepdamp identify static` prints: the table's size and the harmonics of the asked
+/// orders from [`analyse`]. `Display` is the CLI's text, `Serialize` its `--format json`.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct StaticReport {
+    /// The table, as named in messages (its path).
+    pub source: String,
+    /// Points in the table.
+    pub points: usize,
+    /// Electrical periods the table spans.
+    pub electrical_periods: u32,
+    /// The harmonics of the asked orders the table resolves ([`StaticCurve::select`]).
+    pub harmonics: Vec<StaticHarmonic>,
+    /// Mean torque in the table's sign, N·m.
+    pub mean_nm: f64,
+    /// RMS of what is not a whole-order harmonic (nor the mean), N·m.
+    pub rest_rms_nm: f64,
+}
+
+impl StaticReport {
+    /// The report of `curve` (from a table of `points` points named `source`) for `orders`.
+    pub fn new(source: &str, points: usize, curve: &StaticCurve, orders: &[u16]) -> Self {
+        StaticReport {
+            source: source.to_string(),
+            points,
+            electrical_periods: curve.electrical_periods,
+            harmonics: curve.select(orders),
+            mean_nm: curve.mean_nm,
+            rest_rms_nm: curve.rest_rms_nm,
+        }
+    }
+}
+
+impl std::fmt::Display for StaticReport {
+    /// Amplitudes and torques in mN·m, phases in rad (profile convention).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(f, "{}: {} points, {} electrical periods", self.source, self.points, self.electrical_periods)?;
+        writeln!(f, "  order   amplitude mN·m   phase rad")?;
+        for h in &self.harmonics {
+            writeln!(f, "  {:>5}   {:10.4}       {:+8.4}", h.order, 1e3 * h.amplitude_nm, h.phase_rad)?;
+        }
+        write!(
+            f,
+            "  mean torque {:.4} mN·m, rest (other orders) {:.4} mN·m RMS",
+            1e3 * self.mean_nm,
+            1e3 * self.rest_rms_nm
+        )
     }
 }
 

@@ -14,7 +14,6 @@ use anyhow::{Result, anyhow, bail};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use rayon::prelude::*;
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use stepdamp_identify::conditions::InertiaMode;
@@ -22,9 +21,11 @@ use stepdamp_identify::fit::{Effort, Fit, FitOptions, FitReport, fit};
 use stepdamp_identify::log::{LogOptions, RunLog, read_log};
 use stepdamp_identify::model::Model;
 use stepdamp_identify::plan::{Plan, PlanOptions, plan, run_plan};
-use stepdamp_identify::refine::{PERIODIC_ORDERS, RefineOptions, Refinement, refine, remaining_ripple_nm, series_nm};
+use stepdamp_identify::refine::{
+    RefineOptions, Refinement, RefinementReport, RunReport, refine, remaining_ripple_nm, series_nm,
+};
 use stepdamp_identify::spectrum::order_spectrum;
-use stepdamp_identify::static_curve::{TorqueSign, analyse, read_table};
+use stepdamp_identify::static_curve::{StaticReport, TorqueSign, analyse, read_table};
 use stepdamp_identify::validation::Validation;
 use stepdamp_sim::Profile;
 
@@ -116,6 +117,9 @@ struct PlanArgs {
     /// Electrical periods of steady running per run.
     #[arg(long, default_value_t = 40.0, allow_negative_numbers = true)]
     periods: f64,
+    /// text, or json: the plan (stepdamp_identify::plan::Plan) as one line of JSON.
+    #[arg(long, value_enum, default_value_t)]
+    format: Format,
 }
 
 /// `stepdamp identify run`.
@@ -151,6 +155,11 @@ struct RunArgs {
     /// Most refinement iterations.
     #[arg(long, default_value_t = 3, allow_negative_numbers = true)]
     iterations: i64,
+    /// text, or json: the run's result (stepdamp_identify::refine::RunReport: the plan, and
+    /// with --refine the fit's report and the refinement) as one line of JSON on stdout,
+    /// nothing else (the files are written the same).
+    #[arg(long, value_enum, default_value_t)]
+    format: Format,
 }
 
 /// `stepdamp identify static`.
@@ -176,6 +185,10 @@ struct StaticArgs {
     /// Name of the new profile (default: base name + "-static").
     #[arg(long)]
     name: Option<String>,
+    /// text, or json: the analysis (stepdamp_identify::static_curve::StaticReport) as one
+    /// line of JSON on stdout, nothing else (the profile is written the same).
+    #[arg(long, value_enum, default_value_t)]
+    format: Format,
 }
 
 /// Runs `stepdamp identify`.
@@ -228,11 +241,10 @@ fn run_plan_cmd(a: PlanArgs) -> Result<()> {
     let motor = load_motor(&a.motor)?;
     let orders = parse_orders(&a.orders)?;
     let p = plan(&motor, &plan_options(&orders, a.periods)?)?;
-    out!("{}", p.describe());
-    outln!(
-        "total {:.1} s of logging; record t_s, theta_fb_rad, i_q_a (or i_a_a, i_b_a) every control period",
-        p.total_s()
-    );
+    match a.format {
+        Format::Text => outln!("{p}"),
+        Format::Json => print_json(&p)?,
+    }
     Ok(())
 }
 
@@ -250,6 +262,7 @@ fn default_name(base: &Profile, suffix: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::fmt::Write as _;
 
     fn args(v: &[&str]) -> IdentifyArgs {
         use clap::Parser;
