@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use stepdamp_identify::conditions::InertiaMode;
-use stepdamp_identify::fit::{FitOptions, FitReport, fit};
+use stepdamp_identify::fit::{FeedForwardCheck, FitOptions, FitReport, fit};
 use stepdamp_identify::log::{LogOptions, read_log};
 use stepdamp_identify::plan::{PlanOptions, plan};
 use stepdamp_identify::validation::{default_max_order, validate};
@@ -123,6 +123,38 @@ fn identify_format_json_is_the_library_fit_report_alone() {
     let logs: Vec<_> = csv.iter().map(|p| read_log(p, &opts).unwrap()).collect();
     let f = fit(&logs, &FitOptions::for_profile(&profile, &[1, 2, 4])).unwrap();
     let want = serde_json::to_value(FitReport::new(&profile.name, f)).unwrap();
+    assert_close(&got, &want);
+}
+
+#[test]
+fn identify_ff_on_json_carries_the_library_feed_forward_check() {
+    let dir = tempfile::tempdir().unwrap();
+    let (csv, base) = logs(dir.path());
+    let mut args = vec!["identify".to_string()];
+    for c in &csv {
+        args.extend(["--log".to_string(), c.display().to_string()]);
+    }
+    let out = dir.path().join("ff.toml");
+    args.extend(
+        ["--motor", base.to_str().unwrap(), "--out", out.to_str().unwrap(), "--ff-on", "--format", "json"]
+            .map(String::from),
+    );
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let text = String::from_utf8(stepdamp(&args).stdout).unwrap();
+    assert_eq!(text.lines().count(), 1, "one line of JSON: {text}");
+    let got: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert!(got["feed_forward"]["remaining_ripple_nm"].is_number(), "{got}");
+
+    let profile = Profile::from_file(&base).unwrap();
+    let opts = LogOptions::new(profile.motor.pole_pairs);
+    let logs: Vec<_> = csv.iter().map(|p| read_log(p, &opts).unwrap()).collect();
+    let mut fo = FitOptions::for_profile(&profile, &[1, 2, 4]);
+    fo.correct_quantisation = false;
+    fo.smooth_effort = false;
+    fo.fit_inertia = false;
+    let f = fit(&logs, &fo).unwrap();
+    let check = FeedForwardCheck::new(&profile, &f);
+    let want = serde_json::to_value(FitReport::new(&profile.name, f).with_feed_forward(check)).unwrap();
     assert_close(&got, &want);
 }
 

@@ -164,12 +164,6 @@ impl From<FitError> for RefineError {
     }
 }
 
-/// The remaining ripple of logs recorded with feed-forward `current` on, fitted as `f`:
-/// `RMS(δ)` in N·m (see the module documentation).
-pub fn remaining_ripple_nm(current: &Model, ff_on: &Fit) -> f64 {
-    Model::from_fit(ff_on).ripple_difference_rms_nm(current)
-}
-
 /// Refines `start` on the simulator: `motor` is the simulated plant, `plan` gives the runs
 /// and the servo settings, `fit_options` the fit (orders, Km, J, …). `tick` is called once
 /// per simulated run: `plan.runs.len() × (iterations + 1)` times at most (the last round

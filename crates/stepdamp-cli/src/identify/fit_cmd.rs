@@ -52,16 +52,8 @@ pub(super) fn run_fit_cmd(a: FitArgs, _global: &Global) -> Result<()> {
     let out_s = out.display().to_string();
     let profile = model.apply_to(&base, Some(&name), &out_s).map_err(|e| anyhow!("{e}"))?;
     let rows: usize = logs.iter().map(RunLog::len).sum();
-    let validation = print_fit_report(&f, &base.name, a.format)?;
-    if a.ff_on && text {
-        let before = Model::of_profile(&base);
-        outln!(
-            "feed-forward on: remaining ripple {:.3} mN·m RMS (the feed-forward of {} carried {:.3} mN·m RMS)",
-            1e3 * remaining_ripple_nm(&before, &f),
-            base.name,
-            1e3 * before.ripple_rms_nm()
-        );
-    }
+    let ff = a.ff_on.then(|| FeedForwardCheck::new(&base, &f));
+    let validation = print_fit_report(&f, &base.name, ff, a.format)?;
     if text {
         outln!("{} logs, {rows} rows: read in {t_read:.3} s, fitted in {t_fit:.3} s", logs.len());
     }
@@ -80,8 +72,16 @@ pub(super) fn run_fit_cmd(a: FitArgs, _global: &Global) -> Result<()> {
 
 /// Prints the fit's report ([`FitReport`]: the table, the warnings, the decisions — which
 /// `J`, and why — and the validation) and returns its validation for the plots.
-pub(super) fn print_fit_report(f: &Fit, base: &str, format: Format) -> Result<Validation> {
-    let report = FitReport::new(base, f.clone());
+pub(super) fn print_fit_report(
+    f: &Fit,
+    base: &str,
+    ff: Option<FeedForwardCheck>,
+    format: Format,
+) -> Result<Validation> {
+    let mut report = FitReport::new(base, f.clone());
+    if let Some(c) = ff {
+        report = report.with_feed_forward(c);
+    }
     match format {
         Format::Text => outln!("{report}"),
         Format::Json => print_json(&report)?,

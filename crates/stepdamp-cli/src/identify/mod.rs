@@ -17,13 +17,11 @@ use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use stepdamp_identify::conditions::InertiaMode;
-use stepdamp_identify::fit::{Effort, Fit, FitOptions, FitReport, fit};
+use stepdamp_identify::fit::{Effort, FeedForwardCheck, Fit, FitOptions, FitReport, fit};
 use stepdamp_identify::log::{LogOptions, RunLog, read_log};
 use stepdamp_identify::model::Model;
 use stepdamp_identify::plan::{Plan, PlanOptions, plan, run_plan};
-use stepdamp_identify::refine::{
-    RefineOptions, Refinement, RefinementReport, RunReport, refine, remaining_ripple_nm, series_nm,
-};
+use stepdamp_identify::refine::{RefineOptions, Refinement, RefinementReport, RunReport, refine, series_nm};
 use stepdamp_identify::spectrum::order_spectrum;
 use stepdamp_identify::static_curve::{StaticReport, TorqueSign, analyse, read_table};
 use stepdamp_identify::validation::Validation;

@@ -143,7 +143,7 @@ mod thresholds;
 mod warnings;
 
 pub use options::{Effort, FitOptions};
-pub use report::FitReport;
+pub use report::{FeedForwardCheck, FitReport};
 pub use result::{Estimate, Fit, FitError, FitSamples, HarmonicEstimate, RunSummary, polar_with_ci, wrap_pi};
 pub use warnings::Warning;
 

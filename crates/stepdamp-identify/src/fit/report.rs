@@ -1,6 +1,7 @@
 //! What `stepdamp identify` prints after a fit: the table, the decisions and the validation.
 
 use super::Fit;
+use crate::model::Model;
 use crate::validation::{Validation, default_max_order, validate};
 use serde::Serialize;
 use std::fmt;
@@ -15,13 +16,61 @@ pub struct FitReport {
     pub fit: Fit,
     /// Its validation ([`crate::validation::validate`]).
     pub validation: Validation,
+    /// For logs recorded with a feed-forward running (`identify --ff-on`): what is left.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub feed_forward: Option<FeedForwardCheck>,
+}
+
+/// What logs recorded with a detent feed-forward running tell (`identify --ff-on`, the
+/// patent's criterion): the periodic effort ripple the fit still finds, against the ripple
+/// the feed-forward carried. Both RMS over the electrical angle, in N·m.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FeedForwardCheck {
+    /// Name of the profile whose feed-forward ran.
+    pub base: String,
+    /// RMS in N·m of the ripple left with the feed-forward on: the difference between the
+    /// model fitted to these logs and the one that ran.
+    pub remaining_ripple_nm: f64,
+    /// RMS in N·m of the ripple the feed-forward carried (the base profile's detent model).
+    pub carried_ripple_nm: f64,
+}
+
+impl FeedForwardCheck {
+    /// The check of `ff_on`, fitted to logs recorded with `base`'s feed-forward running.
+    pub fn new(base: &stepdamp_profile::Profile, ff_on: &Fit) -> Self {
+        let carried = Model::of_profile(base);
+        FeedForwardCheck {
+            base: base.name.clone(),
+            remaining_ripple_nm: Model::from_fit(ff_on).ripple_difference_rms_nm(&carried),
+            carried_ripple_nm: carried.ripple_rms_nm(),
+        }
+    }
+}
+
+impl fmt::Display for FeedForwardCheck {
+    /// One line, in mN·m.
+    fn fmt(&self, s: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            s,
+            "feed-forward on: remaining ripple {:.3} mN·m RMS (the feed-forward of {} carried {:.3} mN·m RMS)",
+            1e3 * self.remaining_ripple_nm,
+            self.base,
+            1e3 * self.carried_ripple_nm
+        )
+    }
 }
 
 impl FitReport {
     /// The report of `fit`, validated up to [`default_max_order`].
     pub fn new(base: &str, fit: Fit) -> Self {
         let validation = validate(&fit, default_max_order(&fit));
-        FitReport { base: base.to_string(), fit, validation }
+        FitReport { base: base.to_string(), fit, validation, feed_forward: None }
+    }
+
+    /// The report with the feed-forward check of `--ff-on` logs.
+    pub fn with_feed_forward(mut self, check: FeedForwardCheck) -> Self {
+        self.feed_forward = Some(check);
+        self
     }
 }
 
@@ -82,6 +131,10 @@ impl fmt::Display for FitReport {
         for d in &f.decisions {
             writeln!(s, "{d}")?;
         }
-        write!(s, "validation (orders 1–{}):\n{}", self.validation.max_order, self.validation)
+        write!(s, "validation (orders 1–{}):\n{}", self.validation.max_order, self.validation)?;
+        if let Some(c) = &self.feed_forward {
+            write!(s, "\n{c}")?;
+        }
+        Ok(())
     }
 }
