@@ -17,9 +17,11 @@ use crate::lowpass::LowPass;
 /// Largest counts per revolution [`Encoder::new`] keeps (larger values are clamped): the
 /// range [`crate::Config::new`] accepts, within which [`Encoder::position`]'s 32-bit long
 /// division cannot overflow.
-const MAX_COUNTS_PER_REV: u32 = 1 << 20;
+const MAX_COUNTS_PER_REV: u32 = crate::limits::COUNTS_PER_REV.max as u32;
 /// Largest pole-pair count [`Encoder::new`] keeps (as [`crate::Config::new`] accepts).
-const MAX_POLE_PAIRS: u16 = 1024;
+const MAX_POLE_PAIRS: u16 = crate::limits::POLE_PAIRS.max as u16;
+// The long division's bound (see `shl31_div`) holds for the range the limits allow.
+const _: () = assert!(MAX_COUNTS_PER_REV <= 1 << 21 && MAX_POLE_PAIRS as u32 <= 1 << 10);
 
 /// Encoder configuration, fixed at start-up.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -53,6 +53,7 @@
 #![no_std]
 
 pub mod angle;
+pub mod choice;
 pub mod config;
 pub mod correction;
 pub mod detent;
@@ -67,9 +68,10 @@ pub mod pi;
 pub mod trig;
 
 pub use angle::{MicrostepAccumulator, Position};
+pub use choice::UnknownName;
 pub use config::{
     Compensation, Config, ConfigError, DriveSettings, MAX_ELECTRICAL_TURN_PER_PERIOD, Mode, MotorModel,
-    PATENT_MOTOR_DETENT, Params, Reason, ServoGains, UnknownName, max_speed_rad_s,
+    PATENT_MOTOR_DETENT, Params, Reason, ServoGains, max_speed_rad_s,
 };
 pub use correction::{CorrectionTable, TABLE_TICKS};
 pub use detent::{Harmonic, HarmonicSeries, MAX_HARMONIC_ORDER};
