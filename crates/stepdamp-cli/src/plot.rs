@@ -128,14 +128,7 @@ impl Figure for ValidationFigure<'_> {
                 .label(format!("{}: explains {:.1} %", run.source, 100.0 * run.explained_share))
                 .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 14, y + 5)], color.filled()));
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK.mix(0.3))
-            .label_font(("sans-serif", 14))
-            .draw()
-            .map_err(err)?;
+        legend(&mut chart)?;
         Ok(())
     }
 }
@@ -211,16 +204,24 @@ where
                 .collect();
             chart.draw_series(lost.iter().map(|&p| Cross::new(p, 6, color.stroke_width(2)))).map_err(err)?;
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK.mix(0.3))
-            .label_font(("sans-serif", 14))
-            .draw()
-            .map_err(err)?;
+        legend(&mut chart)?;
     }
     Ok(())
+}
+
+/// The legend every plot draws: upper right, on a light box.
+pub fn legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(chart: &mut ChartContext<'a, DB, CT>) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK.mix(0.3))
+        .label_font(("sans-serif", 14))
+        .draw()
+        .map_err(|e| anyhow!("plot: {e}"))
 }
 
 #[cfg(test)]

@@ -142,14 +142,7 @@ where
         .map_err(err)?
         .label(after_label.to_string())
         .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 14, y + 5)], blue.filled()));
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK.mix(0.3))
-        .label_font(("sans-serif", 14))
-        .draw()
-        .map_err(err)?;
+    crate::plot::legend(&mut chart)?;
     Ok(())
 }
 
