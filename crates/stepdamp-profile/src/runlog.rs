@@ -24,6 +24,11 @@ pub struct LogRow {
     pub i_q_a: f64,
     /// q current command in A.
     pub iq_cmd_a: f64,
+    /// Mean voltage across winding A over `[t_s, t_s + Ts)` in V, after the modulator's
+    /// limiting (with a computation delay: the voltage actually applied in that interval).
+    pub v_a_v: f64,
+    /// Mean voltage across winding B over `[t_s, t_s + Ts)` in V (as `v_a_v`).
+    pub v_b_v: f64,
 }
 
 /// Writes rows as CSV with the header of design.md §6.

@@ -238,6 +238,13 @@ pub struct PeriodRecord {
     pub measurement: Measurement,
     /// Controller signals of this period.
     pub signals: Signals,
+    /// Mean voltage across winding A over this period `[t_k, t_k + Ts)` in V: the
+    /// modulator's (limited) duties applied in this period, which with a computation
+    /// delay are the ones computed in the period before. What a sensorless identification
+    /// integrates (`∫(v − R i) dt`).
+    pub v_a_v: f64,
+    /// Mean voltage across winding B over this period in V (as [`PeriodRecord::v_a_v`]).
+    pub v_b_v: f64,
 }
 
 /// Plant + sensors + controller.
@@ -459,7 +466,7 @@ impl ClosedLoop {
         let duties = if self.delay { core::mem::replace(&mut self.pending, out.duties) } else { out.duties };
         let (a, b) = self.topology.winding_voltages_per_vdc(&duties);
         let (va, vb) = (f64::from(a) * self.vdc, f64::from(b) * self.vdc);
-        (PeriodRecord { plant: sampled, measurement: m, signals: out.signals }, va, vb)
+        (PeriodRecord { plant: sampled, measurement: m, signals: out.signals, v_a_v: va, v_b_v: vb }, va, vb)
     }
 }
 

@@ -25,6 +25,8 @@ impl FromRecord for LogRow {
             i_d_a: f64::from(s.i_dq.d),
             i_q_a: f64::from(s.i_dq.q),
             iq_cmd_a: f64::from(s.i_dq_cmd.q),
+            v_a_v: r.v_a_v,
+            v_b_v: r.v_b_v,
         }
     }
 }
