@@ -41,8 +41,19 @@ use stepdamp_out::input::{LineLimited, LineTooLong, printable};
 use stepdamp_profile::LogRow;
 
 /// The columns a run log must or may carry (docs/files.md, "Run log").
-pub const KNOWN_COLUMNS: [&str; 9] =
-    ["t_s", "theta_cmd_rad", "theta_fb_rad", "omega_fb_rad_s", "i_a_a", "i_b_a", "i_d_a", "i_q_a", "iq_cmd_a"];
+pub const KNOWN_COLUMNS: [&str; 11] = [
+    "t_s",
+    "theta_cmd_rad",
+    "theta_fb_rad",
+    "omega_fb_rad_s",
+    "i_a_a",
+    "i_b_a",
+    "i_d_a",
+    "i_q_a",
+    "iq_cmd_a",
+    "v_a_v",
+    "v_b_v",
+];
 
 /// Longest line accepted, in bytes. A §6 row is about 200 bytes and a header of
 /// [`MAX_COLUMNS`] 60-character names 60 KiB; anything longer is not a run log, and the
@@ -314,157 +325,69 @@ pub(crate) fn column_list(names: &[String]) -> String {
     s
 }
 
-#[derive(Clone, Copy)]
-enum Col {
-    T,
-    Theta,
-    Iq,
-    Ia,
-    Ib,
-    IqCmd,
-    Skip,
-}
-
 /// Parses a run log from any reader; `source` names it in errors.
 pub fn parse_log<R: Read>(reader: R, source: &str, opts: &LogOptions) -> Result<RunLog, LogError> {
-    let path = source.to_string();
-    let mut rdr = bounded_csv(reader);
-    let mut rec = csv::ByteRecord::new();
-    let csv_err = |e: csv::Error, path: &str| {
-        let path = path.to_string();
-        match CsvFailure::of(e) {
-            CsvFailure::LineTooLong { line, limit } => LogError::LineTooLong { path, line, limit },
-            CsvFailure::Io(source) => LogError::Io { path, source },
-            CsvFailure::Malformed { line, message } => LogError::Csv { path, line, message },
-        }
-    };
-    if !rdr.read_byte_record(&mut rec).map_err(|e| csv_err(e, &path))? {
-        return Err(LogError::Empty {
-            path, what: "empty file: expected a header row (t_s, theta_fb_rad, i_q_a, …)"
-        });
+    let cols = columns::ColumnReader::open(
+        reader,
+        source,
+        &KNOWN_COLUMNS,
+        "empty file: expected a header row (t_s, theta_fb_rad, i_q_a, …)",
+    )?;
+    if !cols.has("t_s") {
+        return Err(cols.missing("t_s", "time in s"));
     }
-    if rec.len() > MAX_COLUMNS {
-        return Err(LogError::TooManyColumns { path, found: rec.len(), max: MAX_COLUMNS });
+    if !cols.has("theta_fb_rad") {
+        return Err(cols.missing("theta_fb_rad", "encoder angle in rad"));
     }
-    let header = header_names(&rec);
-    let mut cols = Vec::with_capacity(header.len());
-    let mut ignored = Vec::new();
-    let mut seen = std::collections::HashSet::with_capacity(header.len());
-    for h in &header {
-        if !seen.insert(h.as_str()) {
-            return Err(LogError::DuplicateColumn { path, column: h.clone() });
-        }
-        cols.push(match h.as_str() {
-            "t_s" => Col::T,
-            "theta_fb_rad" => Col::Theta,
-            "i_q_a" => Col::Iq,
-            "i_a_a" => Col::Ia,
-            "i_b_a" => Col::Ib,
-            "iq_cmd_a" => Col::IqCmd,
-            other => {
-                if !KNOWN_COLUMNS.contains(&other) {
-                    ignored.push(other.to_string());
-                }
-                Col::Skip
-            }
-        });
-    }
-    let has = |c: &str| seen.contains(c);
-    let missing = |column: &'static str, need: &'static str| LogError::MissingColumn {
-        path: path.clone(),
-        column,
-        need,
-        found: column_list(&header),
-    };
-    if !has("t_s") {
-        return Err(missing("t_s", "time in s"));
-    }
-    if !has("theta_fb_rad") {
-        return Err(missing("theta_fb_rad", "encoder angle in rad"));
-    }
-    let iq_source = if has("i_q_a") {
+    let iq_source = if cols.has("i_q_a") {
         IqSource::Column
-    } else if has("i_a_a") && has("i_b_a") {
+    } else if cols.has("i_a_a") && cols.has("i_b_a") {
         IqSource::Park
-    } else if has("i_a_a") {
-        return Err(missing("i_b_a", "i_q_a is absent, so both phase currents i_a_a and i_b_a are needed"));
+    } else if cols.has("i_a_a") {
+        return Err(cols.missing("i_b_a", "i_q_a is absent, so both phase currents i_a_a and i_b_a are needed"));
     } else {
-        return Err(missing("i_q_a", "torque current in A; or give both i_a_a and i_b_a"));
+        return Err(cols.missing("i_q_a", "torque current in A; or give both i_a_a and i_b_a"));
     };
-    let want_cmd = has("iq_cmd_a");
-
-    let mut t = Vec::new();
-    let mut th = Vec::new();
-    let mut iq = Vec::new();
-    let mut ia = Vec::new();
-    let mut ib = Vec::new();
-    let mut cmd = Vec::new();
-    let ncol = header.len();
-    let mut line: u64 = 1;
-    let mut prev_t = f64::NEG_INFINITY;
-    loop {
-        match rdr.read_byte_record(&mut rec) {
-            Ok(true) => {}
-            Ok(false) => break,
-            Err(e) => return Err(csv_err(e, &path)),
-        }
-        line = rec.position().map_or(line + 1, |p| p.line());
-        if rec.len() == 1 && rec.get(0).is_some_and(<[u8]>::is_empty) {
-            continue; // blank line
-        }
-        if rec.len() != ncol {
-            return Err(LogError::ShortRow { path, line, found: rec.len(), expected: ncol });
-        }
-        for (i, c) in cols.iter().enumerate() {
-            let target = match c {
-                Col::Skip => continue,
-                Col::T => &mut t,
-                Col::Theta => &mut th,
-                Col::Iq => &mut iq,
-                Col::Ia if iq_source == IqSource::Park => &mut ia,
-                Col::Ib if iq_source == IqSource::Park => &mut ib,
-                Col::IqCmd => &mut cmd,
-                Col::Ia | Col::Ib => continue,
-            };
-            let field = &rec[i];
-            let v = std::str::from_utf8(field).ok().and_then(|s| s.parse::<f64>().ok()).filter(|v| v.is_finite());
-            let Some(v) = v else {
-                return Err(LogError::BadValue {
-                    path,
-                    line,
-                    column: header[i].clone(),
-                    value: printable(field, SHOWN_CHARS),
-                });
-            };
-            target.push(v);
-        }
-        let thn = *th.last().expect("theta_fb_rad is a column");
-        if thn.abs() > MAX_ANGLE_RAD {
-            return Err(LogError::AngleOutOfRange { path, line, value: thn, max: MAX_ANGLE_RAD });
-        }
-        let tn = *t.last().expect("t_s is a column");
-        if tn <= prev_t {
-            return Err(LogError::NonMonotonicTime { path, line, t: tn, prev: prev_t });
-        }
-        prev_t = tn;
+    let want_cmd = cols.has("iq_cmd_a");
+    let mut wanted = vec!["t_s", "theta_fb_rad"];
+    match iq_source {
+        IqSource::Column => wanted.push("i_q_a"),
+        IqSource::Park => wanted.extend(["i_a_a", "i_b_a"]),
     }
-    if t.is_empty() {
-        return Err(LogError::Empty { path, what: "no data rows after the header" });
+    if want_cmd {
+        wanted.push("iq_cmd_a");
     }
-    if iq_source == IqSource::Park {
-        let nr = f64::from(opts.pole_pairs);
-        iq = th.iter().zip(ia.iter().zip(&ib)).map(|(&th, (&a, &b))| park_q(nr * th, a, b)).collect();
-    }
+    let ignored = cols.ignored.clone();
+    let path = source.to_string();
+    let columns::Columns { values, last_line } = cols.read(&wanted, |line, row| {
+        let th = row[1];
+        if th.abs() > MAX_ANGLE_RAD {
+            return Err(LogError::AngleOutOfRange { path: path.clone(), line, value: th, max: MAX_ANGLE_RAD });
+        }
+        Ok(())
+    })?;
+    let mut values = values.into_iter();
+    let mut next = || values.next().unwrap_or_default();
+    let (t, th) = (next(), next());
+    let iq = match iq_source {
+        IqSource::Column => next(),
+        IqSource::Park => {
+            let (ia, ib) = (next(), next());
+            let nr = f64::from(opts.pole_pairs);
+            th.iter().zip(ia.iter().zip(&ib)).map(|(&th, (&a, &b))| park_q(nr * th, a, b)).collect()
+        }
+    };
+    let cmd = want_cmd.then(next);
     let log = RunLog {
         source: path,
         t_s: t,
         theta_fb_rad: th,
         i_q_a: iq,
-        iq_cmd_a: want_cmd.then_some(cmd),
+        iq_cmd_a: cmd,
         iq_source,
         ignored_columns: ignored,
     };
-    log.check_length(opts, line)?;
+    log.check_length(opts, last_line)?;
     Ok(log)
 }
 
@@ -531,6 +454,8 @@ impl RunLog {
         Ok(())
     }
 }
+
+pub(crate) mod columns;
 
 #[cfg(test)]
 mod tests;
