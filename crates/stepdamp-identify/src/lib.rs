@@ -54,6 +54,7 @@ pub mod model;
 pub mod plan;
 #[cfg(feature = "simulate")]
 pub mod refine;
+pub mod sensorless;
 #[cfg(feature = "simulate")]
 pub mod simulate;
 pub mod spectrum;

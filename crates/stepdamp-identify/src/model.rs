@@ -17,6 +17,9 @@ pub struct Model {
     pub viscous_nm_s_per_rad: f64,
     /// Rotor + load inertia `J` in kg·m² when identified; `None` keeps the base profile's.
     pub inertia_kg_m2: Option<f64>,
+    /// Phase resistance `R` in Ω when measured (the sensorless route trims it at
+    /// standstill, [`crate::sensorless::flux`]); `None` keeps the base profile's.
+    pub resistance_ohm: Option<f64>,
 }
 
 impl Model {
@@ -38,6 +41,7 @@ impl Model {
             coulomb_friction_nm: f.coulomb_friction_nm.value.max(0.0),
             viscous_nm_s_per_rad: f.viscous_used.max(0.0),
             inertia_kg_m2: f.inertia_kg_m2.map(|j| j.value),
+            resistance_ohm: None,
         }
     }
 
@@ -48,11 +52,13 @@ impl Model {
             coulomb_friction_nm: p.motor.coulomb_friction_nm,
             viscous_nm_s_per_rad: p.motor.viscous_nm_s_per_rad,
             inertia_kg_m2: None,
+            resistance_ohm: None,
         }
     }
 
     /// `base` with `motor.detent`, `motor.coulomb_friction_nm`,
-    /// `motor.viscous_nm_s_per_rad` and, when identified, `motor.inertia_kg_m2` replaced by
+    /// `motor.viscous_nm_s_per_rad` and, when identified, `motor.inertia_kg_m2` and
+    /// `motor.resistance_ohm` replaced by
     /// this model, validated. Everything else (drive, encoder, servo, Km) is kept. `name` replaces the profile's name when
     /// given.
     pub fn apply_to(&self, base: &Profile, name: Option<&str>, origin: &str) -> Result<Profile, ProfileError> {
@@ -62,6 +68,9 @@ impl Model {
             p.motor.viscous_nm_s_per_rad = self.viscous_nm_s_per_rad;
             if let Some(j) = self.inertia_kg_m2 {
                 p.motor.inertia_kg_m2 = j;
+            }
+            if let Some(r) = self.resistance_ohm {
+                p.motor.resistance_ohm = r;
             }
             if let Some(n) = name {
                 p.name = n.to_string();
@@ -121,6 +130,7 @@ mod tests {
             coulomb_friction_nm: 0.02,
             viscous_nm_s_per_rad: 0.002,
             inertia_kg_m2: None,
+            resistance_ohm: None,
         };
         let p = m.apply_to(&base, Some("x"), "out.toml").unwrap();
         assert_eq!(p.motor.detent, m.detent);
@@ -143,6 +153,7 @@ mod tests {
             coulomb_friction_nm: 0.0,
             viscous_nm_s_per_rad: 0.0,
             inertia_kg_m2: None,
+            resistance_ohm: None,
         };
         let b = Model { detent: vec![], ..a.clone() };
         assert!((a.ripple_difference_rms_nm(&b) - a.ripple_rms_nm()).abs() < 1e-15);

@@ -28,6 +28,27 @@ pub fn simulate_run(
 ) -> Result<Vec<LogRow>, SimError> {
     let opts = SimOptions { current_noise_a, seed, ..SimOptions::default() };
     let mut lp = ClosedLoop::new(motor, controller, Mode::Servo, comp, &opts)?;
+    record(&mut lp, motor, r)
+}
+
+/// Simulates one run of a sensorless plan ([`crate::sensorless::plan`]) on `motor`: open
+/// loop at the holding current with the controller of `controller` (the base profile:
+/// same hardware), compensation off, `current_noise_a` of sensor noise; returns its log
+/// rows (with the applied voltages).
+pub fn simulate_open_loop_run(
+    motor: &Profile,
+    controller: &Profile,
+    r: &PlannedRun,
+    current_noise_a: f64,
+    seed: u64,
+) -> Result<Vec<LogRow>, SimError> {
+    let opts = SimOptions { current_noise_a, seed, ..SimOptions::default() };
+    let mut lp = ClosedLoop::new(motor, controller, Mode::OpenLoop, Compensation::Off, &opts)?;
+    record(&mut lp, motor, r)
+}
+
+/// Runs `r` on `lp` and keeps every period's row.
+fn record(lp: &mut ClosedLoop, motor: &Profile, r: &PlannedRun) -> Result<Vec<LogRow>, SimError> {
     let mut spec = RunSpec::at(r.speed_rad_s);
     spec.dwell_s = r.dwell_s;
     spec.ramp_s = r.ramp_s;
@@ -36,7 +57,7 @@ pub fn simulate_run(
     let pwm = motor.drive.pwm_hz;
     let nr = motor.motor.pole_pairs;
     let mut rows = Vec::with_capacity((r.duration_s * pwm) as usize + 1);
-    run(&mut lp, &spec, pwm, |k, rec| rows.push(LogRow::from_record(k, pwm, nr, rec)))?;
+    run(lp, &spec, pwm, |k, rec| rows.push(LogRow::from_record(k, pwm, nr, rec)))?;
     Ok(rows)
 }
 

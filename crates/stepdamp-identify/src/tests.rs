@@ -303,6 +303,7 @@ fn synthetic_model() -> Model {
         coulomb_friction_nm: 0.01,
         viscous_nm_s_per_rad: 0.002,
         inertia_kg_m2: None,
+        resistance_ohm: None,
     }
 }
 

@@ -1,0 +1,292 @@
+//! The rotor's electrical angle from the drive's own voltages and currents (no sensor).
+//!
+//! The winding equations (design.md §2, docs/sensorless.md) are `v = R i + L di/dt + dλ/dt`
+//! with the rotor flux linkage `λ = (Km/Nr)(cos θe, sin θe)` (its derivative is the
+//! back-EMF `Km ω (−sin θe, cos θe)`). So
+//!
+//! ```text
+//! λ(t) = ∫₀ᵗ (v − R i) dt − L i(t) + c
+//! ```
+//!
+//! traces a circle of radius `Km/Nr` about the unknown integration constant `c`, and the
+//! rotor's electrical angle is the angle of `λ − c`. Unlike the back-EMF itself, the flux
+//! does not vanish at low speed and needs no differentiation of the noisy current.
+//!
+//! 1. **R trim** at standstill: holding `I_hold` at rest, `v = R i` (the back-EMF and
+//!    `L di/dt` average out), so `R = Σ v·i / Σ i·i` over the standstill after its first
+//!    [`FluxOptions::settle_fraction`], pooled over the runs ([`pooled_resistance`]): the
+//!    angle error `ΔR·I/(Km·ω)` makes even 10⁻⁴ of `R` matter at the slow run (a torque
+//!    error of 0.2 mN·m on patent-motor at 0.74 rad/s, which is 30 % of `D·ω`). Without a standstill of at least
+//!    [`FluxOptions::min_standstill_s`], the base profile's `R` is used and the report says
+//!    so: an error `ΔR` then turns the angle by about `ΔR·I/(Km·ω)` rad (electrical) — at
+//!    1 rad/s on patent-motor 10 % of `R` is 0.57 rad.
+//! 2. **Integration**: the voltage is the mean over each period (as logged), the current
+//!    the trapezoid of the samples at its ends.
+//! 3. **Centre** `c`: a circle fit (Kåsa: linear least squares in `c` and `r² − |c|²`) over
+//!    windows of [`FluxOptions::window_periods`] commanded electrical periods, interpolated
+//!    linearly in time between the windows' centres, held before the first and after the
+//!    last. The fit is geometric: the rotor's speed ripple moves the points along the circle
+//!    and does not bias it (a high-pass filter would: the first harmonic's ripple puts a
+//!    sideband at zero frequency).
+//!
+//! What limits it (measured figures in docs/sensorless.md): `L` enters as `L·i`, comparable
+//! to the rotor flux (`L·I_hold = 4.75 mWb` against `Km/Nr = 6 mWb` on patent-motor), so
+//! an error in `L` distorts the angle with the current's direction; the trimmed `R` must be
+//! the winding's at the time of the run (copper heats by 0.39 %/K).
+
+use super::log::SensorlessLog;
+use nalgebra::{Matrix3, Vector3};
+use std::f64::consts::TAU;
+
+/// Options of the angle estimate.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct FluxOptions {
+    /// Shortest standstill at the start of a log that trims `R`, s.
+    pub min_standstill_s: f64,
+    /// Share of the standstill left out at its start (current loop and rotor settling).
+    pub settle_fraction: f64,
+    /// Commanded electrical periods per centre window.
+    pub window_periods: f64,
+}
+
+impl Default for FluxOptions {
+    fn default() -> Self {
+        FluxOptions { min_standstill_s: 0.02, settle_fraction: 0.25, window_periods: 2.0 }
+    }
+}
+
+/// The motor constants the estimate needs (from the base profile: a datasheet or a
+/// multimeter gives them).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Winding {
+    /// Pole pairs `Nr`.
+    pub pole_pairs: u16,
+    /// Phase resistance in Ω (used when the log has no standstill to trim it).
+    pub resistance_ohm: f64,
+    /// Phase inductance in H.
+    pub inductance_h: f64,
+}
+
+/// Where the resistance came from.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ResistanceSource {
+    /// Trimmed at the log's standstill.
+    Standstill,
+    /// The base profile's (the log's standstill was too short).
+    Base,
+}
+
+/// The angle estimate of one log and how it was made.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RotorAngle {
+    /// The rotor's electrical angle `θe` at each sample, rad, continuous (unwrapped), and
+    /// within ±π of the commanded `Nr·θ_cmd` at the first sample.
+    pub theta_e_rad: Vec<f64>,
+    /// Standstill samples at the start of the log (commanded angle unchanged).
+    pub standstill_samples: usize,
+    /// Mean radius of the flux circle, Wb (the model's `Km/Nr`).
+    pub flux_wb: f64,
+    /// Standard deviation of the radius about its mean over the moving part, as a fraction
+    /// of the mean: what the noise and errors in `R` and `L` leave (0 for exact data).
+    pub radius_ripple: f64,
+    /// Centre windows fitted.
+    pub windows: usize,
+}
+
+/// Why no angle could be estimated.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FluxError {
+    /// The commanded angle covers less than one centre window.
+    #[error(
+        "{log}: the command covers {periods:.2} electrical periods after the standstill; the sensorless angle needs at least {needed} (run longer or faster)"
+    )]
+    TooShort {
+        /// The log.
+        log: String,
+        /// Commanded electrical periods covered.
+        periods: f64,
+        /// Periods needed.
+        needed: f64,
+    },
+    /// The currents at standstill are zero: nothing to trim `R` with.
+    #[error(
+        "{log}: the phase currents at standstill are zero: the drive must hold I_hold before the run (the sensorless route trims R there)"
+    )]
+    NoStandstillCurrent {
+        /// The log.
+        log: String,
+    },
+    /// A window's circle fit failed (the flux did not turn: the rotor stalled).
+    #[error(
+        "{log}: around t = {t_s:.3} s the flux vector does not turn about a centre (the rotor stalled or the voltages are not the applied ones)"
+    )]
+    NoCircle {
+        /// The log.
+        log: String,
+        /// Time of the window, s.
+        t_s: f64,
+    },
+}
+
+/// The standstill at the start of a log and what it says about `R`: the sums of
+/// `v·i` and `i·i` over its settled part.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Standstill {
+    /// Samples with the commanded angle unchanged from the first.
+    pub samples: usize,
+    /// Its duration, s.
+    pub duration_s: f64,
+    /// `Σ v·i` (W) and `Σ i·i` (A²) over its settled part, when it is long enough
+    /// ([`FluxOptions::min_standstill_s`]).
+    pub sums: Option<(f64, f64)>,
+}
+
+impl Standstill {
+    /// Finds the standstill of `log` and sums its settled part.
+    pub fn of(log: &SensorlessLog, o: &FluxOptions) -> Result<Standstill, FluxError> {
+        let cmd0 = log.theta_cmd_rad.first().copied().unwrap_or(0.0);
+        let samples = log.theta_cmd_rad.iter().take_while(|&&c| (c - cmd0).abs() <= 1e-12 * (1.0 + cmd0.abs())).count();
+        let duration_s = if samples > 1 { log.t_s[samples - 1] - log.t_s[0] } else { 0.0 };
+        if duration_s < o.min_standstill_s {
+            return Ok(Standstill { samples, duration_s, sums: None });
+        }
+        let from = (samples as f64 * o.settle_fraction) as usize;
+        let (mut vi, mut ii) = (0.0, 0.0);
+        for k in from..samples {
+            vi += log.v_a_v[k] * log.i_a_a[k] + log.v_b_v[k] * log.i_b_a[k];
+            ii += log.i_a_a[k].powi(2) + log.i_b_a[k].powi(2);
+        }
+        if ii <= 1e-6 * (samples - from) as f64 {
+            return Err(FluxError::NoStandstillCurrent { log: log.source.clone() });
+        }
+        Ok(Standstill { samples, duration_s, sums: Some((vi, ii)) })
+    }
+}
+
+/// `R = Σ v·i / Σ i·i` pooled over the standstills that have sums (one winding, several
+/// runs: pooling divides the noise by the square root of the runs), else `base_ohm`.
+pub fn pooled_resistance(standstills: &[Standstill], base_ohm: f64) -> (f64, ResistanceSource) {
+    let (vi, ii) = standstills.iter().filter_map(|s| s.sums).fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+    if ii > 0.0 && (vi / ii).is_finite() && vi > 0.0 {
+        (vi / ii, ResistanceSource::Standstill)
+    } else {
+        (base_ohm, ResistanceSource::Base)
+    }
+}
+
+/// Estimates the rotor's electrical angle over `log` (module documentation) with the
+/// winding resistance `resistance_ohm` (from [`pooled_resistance`]).
+pub fn rotor_angle(
+    log: &SensorlessLog,
+    w: &Winding,
+    resistance_ohm: f64,
+    o: &FluxOptions,
+) -> Result<RotorAngle, FluxError> {
+    let n = log.len();
+    let nr = f64::from(w.pole_pairs);
+    let name = || log.source.clone();
+    if n < 3 {
+        return Err(FluxError::TooShort { log: name(), periods: 0.0, needed: o.window_periods });
+    }
+    let cmd0 = log.theta_cmd_rad[0];
+    let still = Standstill::of(log, o)?.samples;
+    // 2. Flux without its constant.
+    let mut lam = Vec::with_capacity(n);
+    let (mut px, mut py) = (0.0, 0.0);
+    for k in 0..n {
+        lam.push((px - w.inductance_h * log.i_a_a[k], py - w.inductance_h * log.i_b_a[k]));
+        if k + 1 < n {
+            let dt = log.t_s[k + 1] - log.t_s[k];
+            px += dt * (log.v_a_v[k] - resistance_ohm * 0.5 * (log.i_a_a[k] + log.i_a_a[k + 1]));
+            py += dt * (log.v_b_v[k] - resistance_ohm * 0.5 * (log.i_b_a[k] + log.i_b_a[k + 1]));
+        }
+    }
+    // 3. Centres over windows of the commanded angle after the standstill.
+    let span = o.window_periods * TAU / nr;
+    let mut centres: Vec<(f64, f64, f64)> = Vec::new(); // (t, cx, cy)
+    let first = still.min(n - 1);
+    let mut start = first;
+    for k in first..n {
+        if (log.theta_cmd_rad[k] - log.theta_cmd_rad[start]).abs() >= span {
+            let t_mid = 0.5 * (log.t_s[start] + log.t_s[k]);
+            let (cx, cy) =
+                kasa_centre(&lam[start..=k]).ok_or_else(|| FluxError::NoCircle { log: name(), t_s: t_mid })?;
+            centres.push((t_mid, cx, cy));
+            start = k;
+        }
+    }
+    if centres.is_empty() {
+        let periods = nr * (log.theta_cmd_rad[n - 1] - log.theta_cmd_rad[first]).abs() / TAU;
+        return Err(FluxError::TooShort { log: name(), periods, needed: o.window_periods });
+    }
+    // The angle about the interpolated centre, unwrapped.
+    let mut theta_e_rad = Vec::with_capacity(n);
+    let mut radius = Vec::with_capacity(n);
+    let mut w_i = 0;
+    for (k, (&t, l)) in log.t_s.iter().zip(&lam).enumerate() {
+        while w_i + 1 < centres.len() && centres[w_i + 1].0 <= t {
+            w_i += 1;
+        }
+        let (cx, cy) = centre_at(&centres, w_i, t);
+        let (x, y) = (l.0 - cx, l.1 - cy);
+        let a = y.atan2(x);
+        let th = match theta_e_rad.last() {
+            None => a + TAU * ((nr * cmd0 - a) / TAU).round(),
+            Some(&prev) => prev + wrap(a - prev),
+        };
+        theta_e_rad.push(th);
+        if k >= still {
+            radius.push(x.hypot(y));
+        }
+    }
+    let m = radius.len().max(1) as f64;
+    let flux_wb = radius.iter().sum::<f64>() / m;
+    let var = radius.iter().map(|r| (r - flux_wb).powi(2)).sum::<f64>() / m;
+    Ok(RotorAngle {
+        theta_e_rad,
+        standstill_samples: still,
+        flux_wb,
+        radius_ripple: var.sqrt() / flux_wb,
+        windows: centres.len(),
+    })
+}
+
+/// The centre at time `t`: linear between the window centres `i` and `i + 1`, held outside.
+fn centre_at(c: &[(f64, f64, f64)], i: usize, t: f64) -> (f64, f64) {
+    let a = c[i];
+    match c.get(i + 1) {
+        Some(b) if t > a.0 => {
+            let s = ((t - a.0) / (b.0 - a.0)).clamp(0.0, 1.0);
+            (a.1 + s * (b.1 - a.1), a.2 + s * (b.2 - a.2))
+        }
+        _ => (a.1, a.2),
+    }
+}
+
+/// `x` wrapped into `(−π, π]`.
+fn wrap(x: f64) -> f64 {
+    x - TAU * (x / TAU).round()
+}
+
+/// Kåsa circle fit: the centre minimising `Σ (|p|² − 2 c·p − k)²`; `None` when the points
+/// do not determine one (fewer than three, or on a line or a point).
+fn kasa_centre(p: &[(f64, f64)]) -> Option<(f64, f64)> {
+    // Centred on the mean for conditioning.
+    let m = p.len() as f64;
+    if m < 3.0 {
+        return None;
+    }
+    let (mx, my) = p.iter().fold((0.0, 0.0), |s, q| (s.0 + q.0 / m, s.1 + q.1 / m));
+    let mut a = Matrix3::<f64>::zeros();
+    let mut b = Vector3::<f64>::zeros();
+    for q in p {
+        let (x, y) = (q.0 - mx, q.1 - my);
+        let row = Vector3::new(2.0 * x, 2.0 * y, 1.0);
+        a += row * row.transpose();
+        b += row * (x * x + y * y);
+    }
+    let sol = a.lu().solve(&b)?;
+    let (cx, cy) = (sol[0] + mx, sol[1] + my);
+    (cx.is_finite() && cy.is_finite() && sol[2] + sol[0].powi(2) + sol[1].powi(2) > 0.0).then_some((cx, cy))
+}

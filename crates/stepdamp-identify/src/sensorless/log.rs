@@ -1,0 +1,139 @@
+//! Sensorless run logs: an open-loop run as the drive itself records it, with no encoder
+//! (docs/files.md, "Run log"; docs/sensorless.md).
+//!
+//! | column | unit | |
+//! |---|---|---|
+//! | `t_s` | s | strictly increasing, from the start of the run (standstill included) |
+//! | `theta_cmd_rad` | rad, mechanical | the commanded angle (`θe_cmd / Nr`) |
+//! | `i_a_a`, `i_b_a` | A | the sampled phase currents at `t_s` |
+//! | `v_a_v`, `v_b_v` | V | the mean voltage across each winding over `[t_s, t_s + Ts)`, after the modulator's limiting (the voltage actually applied in that interval) |
+//!
+//! Other columns are ignored and listed in [`SensorlessLog::ignored_columns`]. Errors are
+//! the run log's ([`crate::log::LogError`]): file, line and column.
+
+use crate::log::columns::{ColumnReader, Columns};
+use crate::log::{KNOWN_COLUMNS, LogError, MAX_ANGLE_RAD};
+use std::io::Read;
+use std::path::Path;
+
+/// The columns a sensorless log must carry, in the order of [`SensorlessLog`]'s fields.
+pub const SENSORLESS_COLUMNS: [&str; 6] = ["t_s", "theta_cmd_rad", "i_a_a", "i_b_a", "v_a_v", "v_b_v"];
+
+/// What each column of [`SENSORLESS_COLUMNS`] is (for the missing-column message).
+const NEEDS: [&str; 6] = [
+    "time in s",
+    "commanded mechanical angle in rad",
+    "phase A current in A",
+    "phase B current in A",
+    "mean phase A winding voltage over the period in V",
+    "mean phase B winding voltage over the period in V",
+];
+
+/// An open-loop run log without an encoder. All vectors have the same length.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SensorlessLog {
+    /// Name of the source (the file path), used in messages.
+    pub source: String,
+    /// Time in s, strictly increasing.
+    pub t_s: Vec<f64>,
+    /// Commanded mechanical angle in rad.
+    pub theta_cmd_rad: Vec<f64>,
+    /// Phase A current in A.
+    pub i_a_a: Vec<f64>,
+    /// Phase B current in A.
+    pub i_b_a: Vec<f64>,
+    /// Mean winding A voltage over `[t_s, t_s + Ts)` in V.
+    pub v_a_v: Vec<f64>,
+    /// Mean winding B voltage over `[t_s, t_s + Ts)` in V.
+    pub v_b_v: Vec<f64>,
+    /// Header columns that were not used (unknown names), in file order.
+    pub ignored_columns: Vec<String>,
+}
+
+/// Which route a log's header calls for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LogKind {
+    /// It has `theta_fb_rad`: an encoder log for the servo route ([`crate::log`]).
+    Encoder,
+    /// No `theta_fb_rad`, but the voltages and currents: the sensorless route.
+    Sensorless,
+}
+
+/// The route a log's header calls for: [`LogKind::Encoder`] when it has `theta_fb_rad`,
+/// [`LogKind::Sensorless`] when it has instead every column of [`SENSORLESS_COLUMNS`]; else
+/// the error of the encoder route (naming what is missing). Reads the header line only.
+pub fn log_kind(path: &Path) -> Result<LogKind, LogError> {
+    let name = path.display().to_string();
+    let file = std::fs::File::open(path).map_err(|source| LogError::Io { path: name.clone(), source })?;
+    let cols = ColumnReader::open(file, &name, &KNOWN_COLUMNS, "empty file: expected a header row")?;
+    if cols.has("theta_fb_rad") {
+        Ok(LogKind::Encoder)
+    } else if cols.has("v_a_v") || cols.has("v_b_v") {
+        // Sensorless intent: a missing current or voltage is reported by the reader.
+        Ok(LogKind::Sensorless)
+    } else {
+        Err(cols.missing("theta_fb_rad", "encoder angle in rad; or, for the sensorless route, v_a_v and v_b_v"))
+    }
+}
+
+/// Reads a sensorless log from a file (streaming, bounded like [`crate::log::read_log`]).
+pub fn read_sensorless_log(path: &Path) -> Result<SensorlessLog, LogError> {
+    let name = path.display().to_string();
+    let file = std::fs::File::open(path).map_err(|source| LogError::Io { path: name.clone(), source })?;
+    parse_sensorless_log(file, &name)
+}
+
+/// Parses a sensorless log from any reader; `source` names it in errors.
+pub fn parse_sensorless_log<R: Read>(reader: R, source: &str) -> Result<SensorlessLog, LogError> {
+    let cols = ColumnReader::open(
+        reader,
+        source,
+        &KNOWN_COLUMNS,
+        "empty file: expected a header row (t_s, theta_cmd_rad, i_a_a, i_b_a, v_a_v, v_b_v)",
+    )?;
+    for (c, need) in SENSORLESS_COLUMNS.iter().zip(NEEDS) {
+        if !cols.has(c) {
+            return Err(cols.missing(c, need));
+        }
+    }
+    let ignored_columns = cols.ignored.clone();
+    let path = source.to_string();
+    let Columns { values, .. } = cols.read(&SENSORLESS_COLUMNS, |line, row| {
+        let th = row[1];
+        if th.abs() > MAX_ANGLE_RAD {
+            return Err(LogError::AngleOutOfRange { path: path.clone(), line, value: th, max: MAX_ANGLE_RAD });
+        }
+        Ok(())
+    })?;
+    let [t_s, theta_cmd_rad, i_a_a, i_b_a, v_a_v, v_b_v]: [Vec<f64>; 6] =
+        values.try_into().unwrap_or_else(|_| Default::default());
+    Ok(SensorlessLog { source: path, t_s, theta_cmd_rad, i_a_a, i_b_a, v_a_v, v_b_v, ignored_columns })
+}
+
+impl SensorlessLog {
+    /// A log from simulator rows, without going through a file.
+    pub fn from_rows(rows: &[stepdamp_profile::LogRow], source: &str) -> SensorlessLog {
+        let col = |f: fn(&stepdamp_profile::LogRow) -> f64| rows.iter().map(f).collect();
+        SensorlessLog {
+            source: source.to_string(),
+            t_s: col(|r| r.t_s),
+            theta_cmd_rad: col(|r| r.theta_cmd_rad),
+            i_a_a: col(|r| r.i_a_a),
+            i_b_a: col(|r| r.i_b_a),
+            v_a_v: col(|r| r.v_a_v),
+            v_b_v: col(|r| r.v_b_v),
+            ignored_columns: Vec::new(),
+        }
+    }
+
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.t_s.len()
+    }
+
+    /// True when the log has no rows.
+    pub fn is_empty(&self) -> bool {
+        self.t_s.is_empty()
+    }
+}

@@ -1,0 +1,169 @@
+//! The sensorless route: the detent and friction from open-loop runs logged by the drive
+//! itself, with no encoder (docs/sensorless.md).
+//!
+//! 1. [`log`]: the open-loop log (`t_s, theta_cmd_rad, i_a_a, i_b_a, v_a_v, v_b_v`).
+//! 2. [`flux`]: the rotor's electrical angle from `∫(v − R i) dt − L i`, with `R` trimmed
+//!    at the run's standstill.
+//! 3. [`estimate`]: that angle and the Park current in it make an ordinary run log, and
+//!    the torque balance is the servo route's ([`crate::fit`]) with [`fit_options`]: the
+//!    angle is continuous (no quantisation correction, no stuck-sample detection on
+//!    encoder edges) and the smoothing corner follows the harmonics only.
+//! 4. [`plan`](mod@plan): the runs to record, with reasons.
+//!
+//! In open loop (`i_d = I_hold`, `i_q = 0` in the command frame) the torque is
+//! `Km·I_hold·sin δ` with `δ = θe_cmd − θe`; the fit sees the same equation as on a servo
+//! log, `J·dω/dt = Km·i_q − Σ A_k sin(kθe + φ_k) − Fs·sgn ω − D·ω`, with `i_q` the Park
+//! transform of the measured currents at the estimated angle.
+
+pub mod flux;
+pub mod log;
+pub mod plan;
+
+use crate::fit::FitOptions;
+use crate::log::{IqSource, RunLog};
+use flux::{FluxError, FluxOptions, ResistanceSource, Standstill, Winding, pooled_resistance, rotor_angle};
+use log::SensorlessLog;
+use stepdamp_profile::Profile;
+
+/// The winding constants of a base profile.
+pub fn winding(base: &Profile) -> Winding {
+    Winding {
+        pole_pairs: base.motor.pole_pairs,
+        resistance_ohm: base.motor.resistance_ohm,
+        inductance_h: base.motor.inductance_h,
+    }
+}
+
+/// Fit options for estimated-angle logs of a motor described by `base`: the servo route's
+/// ([`FitOptions::for_profile`]) without the encoder-specific parts (no counts per
+/// revolution, no quantisation correction, no servo bandwidth).
+pub fn fit_options(base: &Profile, orders: &[u16]) -> FitOptions {
+    FitOptions {
+        counts_per_rev: None,
+        servo_bandwidth_hz: None,
+        correct_quantisation: false,
+        ..FitOptions::for_profile(base, orders)
+    }
+}
+
+/// What the angle estimate of one log found (a line of the report).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct AngleReport {
+    /// The log.
+    pub log: String,
+    /// Standstill at the start of the log, s.
+    pub standstill_s: f64,
+    /// `R` trimmed at this log's standstill alone, Ω (`None`: too short).
+    pub resistance_ohm: Option<f64>,
+    /// `Km` implied by the flux circle's radius, `Nr·|λ|`, N·m/A (compare with the base's).
+    pub km_from_flux_nm_per_a: f64,
+    /// Radius ripple as a fraction of the radius ([`flux::RotorAngle::radius_ripple`]).
+    pub radius_ripple: f64,
+}
+
+/// The sensorless logs made ready for the fit.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Estimated {
+    /// One run log per sensorless log: `θ_fb` the estimated angle (`θe/Nr`), `i_q` the
+    /// measured currents' Park transform at it.
+    pub logs: Vec<RunLog>,
+    /// Per log, what the estimate found.
+    pub angles: Vec<AngleReport>,
+    /// The resistance used for every log, Ω ([`flux::pooled_resistance`]).
+    pub resistance_ohm: f64,
+    /// Where it came from.
+    pub resistance_source: ResistanceSource,
+}
+
+impl Estimated {
+    /// The resistance to write into the identified profile: the trimmed one, `None` when
+    /// the base's was used.
+    pub fn measured_resistance_ohm(&self) -> Option<f64> {
+        (self.resistance_source == ResistanceSource::Standstill).then_some(self.resistance_ohm)
+    }
+}
+
+/// Estimates the rotor angle of every log (`R` pooled over their standstills) and makes the
+/// run logs the fit reads.
+pub fn estimate(logs: &[SensorlessLog], w: &Winding, o: &FluxOptions) -> Result<Estimated, FluxError> {
+    let still = logs.iter().map(|l| Standstill::of(l, o)).collect::<Result<Vec<_>, _>>()?;
+    let (resistance_ohm, resistance_source) = pooled_resistance(&still, w.resistance_ohm);
+    let nr = f64::from(w.pole_pairs);
+    let mut out = Vec::with_capacity(logs.len());
+    let mut angles = Vec::with_capacity(logs.len());
+    for (log, st) in logs.iter().zip(&still) {
+        let a = rotor_angle(log, w, resistance_ohm, o)?;
+        let i_q_a = a
+            .theta_e_rad
+            .iter()
+            .zip(log.i_a_a.iter().zip(&log.i_b_a))
+            .map(|(&th, (&ia, &ib))| {
+                let (s, c) = th.sin_cos();
+                -ia * s + ib * c
+            })
+            .collect();
+        angles.push(AngleReport {
+            log: log.source.clone(),
+            standstill_s: st.duration_s,
+            resistance_ohm: st.sums.map(|(vi, ii)| vi / ii),
+            km_from_flux_nm_per_a: a.flux_wb * nr,
+            radius_ripple: a.radius_ripple,
+        });
+        out.push(RunLog {
+            source: log.source.clone(),
+            t_s: log.t_s.clone(),
+            theta_fb_rad: a.theta_e_rad.iter().map(|th| th / nr).collect(),
+            i_q_a,
+            iq_cmd_a: None,
+            iq_source: IqSource::Park,
+            ignored_columns: log.ignored_columns.clone(),
+        });
+    }
+    Ok(Estimated { logs: out, angles, resistance_ohm, resistance_source })
+}
+
+/// Why the sensorless route failed.
+#[derive(Debug, thiserror::Error)]
+pub enum SensorlessError {
+    /// No angle could be estimated from a log.
+    #[error(transparent)]
+    Angle(#[from] FluxError),
+    /// The fit failed.
+    #[error(transparent)]
+    Fit(#[from] crate::fit::FitError),
+}
+
+/// The sensorless route's result: the angle estimates and the fit.
+#[derive(Clone, Debug)]
+pub struct SensorlessFit {
+    /// The angle estimates and the run logs made from them.
+    pub estimated: Estimated,
+    /// The torque-balance fit of those logs.
+    pub fit: crate::fit::Fit,
+}
+
+impl SensorlessFit {
+    /// The identified model: the fit's, with the trimmed `R` when there was a standstill.
+    pub fn model(&self) -> crate::model::Model {
+        crate::model::Model {
+            resistance_ohm: self.estimated.measured_resistance_ohm(),
+            ..crate::model::Model::from_fit(&self.fit)
+        }
+    }
+}
+
+/// The whole route: [`estimate`] the angles with the base's winding, then
+/// [`crate::fit::fit`] with `fit` (normally [`fit_options`]).
+pub fn identify(
+    logs: &[SensorlessLog],
+    base: &Profile,
+    fit: &FitOptions,
+    o: &FluxOptions,
+) -> Result<SensorlessFit, SensorlessError> {
+    let estimated = estimate(logs, &winding(base), o)?;
+    let fit = crate::fit::fit(&estimated.logs, fit)?;
+    Ok(SensorlessFit { estimated, fit })
+}
+
+#[cfg(all(test, feature = "simulate"))]
+mod tests;

@@ -1,0 +1,93 @@
+//! The sensorless route on the simulator: the angle against the truth, the identified
+//! harmonics against the motor's.
+
+use super::flux::{FluxOptions, ResistanceSource, Standstill, pooled_resistance, rotor_angle};
+use super::log::SensorlessLog;
+use super::plan::{SensorlessPlanOptions, plan};
+use super::{fit_options, identify as identify_sensorless, winding};
+use crate::simulate::{run_seed, simulate_open_loop_run};
+use rayon::prelude::*;
+use stepdamp_core::Mode;
+use stepdamp_profile::Profile;
+use stepdamp_sim::{ClosedLoop, Compensation, RunSpec, SimOptions, run};
+
+fn patent() -> Profile {
+    Profile::preset("patent-motor").unwrap()
+}
+
+/// The flux angle follows the true rotor angle (simulated, 5 mA noise) to within a few
+/// milliradians electrical once the rotor moves.
+#[test]
+fn the_flux_angle_follows_the_true_rotor_angle() {
+    let m = patent();
+    let opts = SimOptions { current_noise_a: 0.005, seed: 3, ..SimOptions::default() };
+    let mut lp = ClosedLoop::new(&m, &m, Mode::OpenLoop, Compensation::Off, &opts).unwrap();
+    let spec = RunSpec { speed_rad_s: 1.0, dwell_s: 0.2, ramp_s: 0.2, duration_s: 1.5, window_s: 1.0 };
+    let pwm = m.drive.pwm_hz;
+    let (mut rows, mut truth) = (Vec::new(), Vec::new());
+    run(&mut lp, &spec, pwm, |k, rec| {
+        rows.push(stepdamp_sim::runlog::FromRecord::from_record(k, pwm, 50, rec));
+        truth.push(50.0 * rec.plant.theta);
+    })
+    .unwrap();
+    let log = SensorlessLog::from_rows(&rows, "sim");
+    let o = FluxOptions::default();
+    let st = Standstill::of(&log, &o).unwrap();
+    let (r, source) = pooled_resistance(&[st], 1.0);
+    assert_eq!(source, ResistanceSource::Standstill);
+    eprintln!("R trim error {:.2e}", r / 0.9 - 1.0);
+    assert!((r / 0.9 - 1.0).abs() < 2e-4, "R {r}");
+    let a = rotor_angle(&log, &winding(&m), r, &o).unwrap();
+    let moving = rows.len() / 3..rows.len();
+    let n = moving.len() as f64;
+    let mean = moving.clone().map(|k| a.theta_e_rad[k] - truth[k]).sum::<f64>() / n;
+    let rms = (moving.map(|k| (a.theta_e_rad[k] - truth[k] - mean).powi(2)).sum::<f64>() / n).sqrt();
+    // The noise floor: L·σ_i over the flux radius Km/Nr.
+    let floor = 2.5e-3 * 0.005 / (0.3 / 50.0);
+    eprintln!(
+        "angle error: rms {rms:.2e} rad (noise floor {floor:.2e}), mean {mean:.2e}; Km from flux {}",
+        a.flux_wb * 50.0
+    );
+    assert!(rms < 1.5 * floor, "rms {rms}");
+    assert!(mean.abs() < 1e-3, "mean {mean}");
+    assert!((a.flux_wb * 50.0 / 0.3 - 1.0).abs() < 1e-3);
+}
+
+/// Identification of `motor` from a simulated sensorless plan made on `base`.
+fn identify(motor: &Profile, base: &Profile, noise: f64, seed: u64) -> Profile {
+    let p = plan(base, &SensorlessPlanOptions::default()).unwrap();
+    let logs: Vec<_> = p
+        .runs
+        .par_iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let rows = simulate_open_loop_run(motor, base, r, noise, run_seed(seed, i as u64)).unwrap();
+            SensorlessLog::from_rows(&rows, &r.name)
+        })
+        .collect();
+    let f = identify_sensorless(&logs, base, &fit_options(base, &[1, 2, 4]), &FluxOptions::default()).unwrap();
+    f.model().apply_to(base, Some("sensorless"), "sensorless.toml").unwrap()
+}
+
+#[test]
+fn patent_motor_harmonics_from_a_sensorless_plan() {
+    let m = patent();
+    let base = m.edited("base", |p| p.motor.resistance_ohm *= 1.1).unwrap();
+    let id = identify(&m, &base, 0.005, 1);
+    for h in &m.motor.detent {
+        let g = id.motor.detent.iter().find(|g| g.order == h.order).unwrap();
+        eprintln!(
+            "k={} A {:.5} vs {:.5} ({:+.2} %), φ {:+.4} vs {:+.4}",
+            h.order,
+            g.amplitude_nm,
+            h.amplitude_nm,
+            100.0 * (g.amplitude_nm / h.amplitude_nm - 1.0),
+            g.phase_rad,
+            h.phase_rad
+        );
+    }
+    eprintln!(
+        "J {:.3e} Fs {:.4} D {:.5}",
+        id.motor.inertia_kg_m2, id.motor.coulomb_friction_nm, id.motor.viscous_nm_s_per_rad
+    );
+}
