@@ -148,6 +148,37 @@ impl std::fmt::Display for Plan {
     }
 }
 
+/// The columns of [`runs_csv`].
+pub const RUNS_CSV_HEADER: &str = "run,speed_rad_s,duration_s,standstill_s,ramp_s";
+
+/// One CSV row per run under [`RUNS_CSV_HEADER`] (`identify plan --format csv`), so a
+/// script or another drive can perform exactly the plan: a run starts at rest holding the
+/// current for `standstill_s`, ramps at constant acceleration to `speed_rad_s` over `ramp_s`,
+/// and holds it until `duration_s`; its log covers it all from `t = 0`.
+pub fn runs_csv(runs: &[PlannedRun]) -> Result<String, csv::Error> {
+    #[derive(serde::Serialize)]
+    struct Row<'a> {
+        run: &'a str,
+        speed_rad_s: f64,
+        duration_s: f64,
+        standstill_s: f64,
+        ramp_s: f64,
+    }
+    let mut w = csv::Writer::from_writer(Vec::new());
+    for r in runs {
+        let row = Row {
+            run: &r.name,
+            speed_rad_s: r.speed_rad_s,
+            duration_s: r.duration_s,
+            standstill_s: r.dwell_s,
+            ramp_s: r.ramp_s,
+        };
+        w.serialize(row)?;
+    }
+    let bytes = w.into_inner().map_err(|e| csv::Error::from(e.into_error()))?;
+    String::from_utf8(bytes).map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e).into())
+}
+
 /// Why the plan could not be made or run.
 #[derive(Debug, thiserror::Error)]
 pub enum PlanError {
@@ -322,6 +353,21 @@ mod tests {
             )),
             "{text}"
         );
+    }
+
+    #[test]
+    fn the_plan_as_csv_has_the_documented_columns_and_one_row_per_run() {
+        let plan = plan(&Profile::preset("patent-motor").unwrap(), &PlanOptions::default()).unwrap();
+        let csv = runs_csv(&plan.runs).unwrap();
+        let mut lines = csv.lines();
+        assert_eq!(lines.next(), Some(RUNS_CSV_HEADER));
+        for (line, r) in lines.zip(&plan.runs) {
+            let f: Vec<&str> = line.split(',').collect();
+            assert_eq!(f[0], r.name);
+            let v: Vec<f64> = f[1..].iter().map(|x| x.parse().unwrap()).collect();
+            assert_eq!(v, [r.speed_rad_s, r.duration_s, r.dwell_s, r.ramp_s]);
+        }
+        assert_eq!(csv.lines().count(), plan.runs.len() + 1);
     }
 
     #[test]

@@ -7,6 +7,7 @@ use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use stepdamp_core::Mode;
 use stepdamp_profile::Profile;
+use stepdamp_profile::runlog::SensorlessRow;
 use stepdamp_sim::runlog::{FromRecord, LogRow, write_csv};
 use stepdamp_sim::{ClosedLoop, Compensation, RunSpec, SimError, SimOptions, run};
 
@@ -124,30 +125,78 @@ pub fn run_plan(
     tick: &(dyn Fn() + Sync),
 ) -> Result<PlanRun, PlanError> {
     let plan = plan(base, o)?;
+    let (p, noise, seed) = (&plan.profile, o.current_noise_a, o.seed);
+    ClosedLoop::new(
+        motor,
+        p,
+        Mode::Servo,
+        Compensation::Off,
+        &SimOptions { current_noise_a: noise, ..SimOptions::default() },
+    )?;
+    let files = write_runs(out_dir, &plan.runs, tick, |i, r| {
+        simulate_run(motor, p, Compensation::Off, r, noise, run_seed(seed, i as u64))
+    })?;
+    Ok(PlanRun { plan, files })
+}
+
+/// Simulates the runs of a sensorless plan on `motor` (open loop, the controller of `base`,
+/// compensation off, `current_noise_a` of sensor noise; seed of run `i`:
+/// [`run_seed`]`(seed, i)`) in parallel and writes one log per run into `out_dir`
+/// (`<run name>.csv`: the columns a drive without an encoder has,
+/// [`stepdamp_profile::runlog::SensorlessRow`]), as [`run_plan`] does. Returns the files in
+/// plan order.
+pub fn run_sensorless_plan(
+    motor: &Profile,
+    base: &Profile,
+    out_dir: &Path,
+    plan: &crate::sensorless::plan::SensorlessPlan,
+    current_noise_a: f64,
+    seed: u64,
+    tick: &(dyn Fn() + Sync),
+) -> Result<Vec<PathBuf>, PlanError> {
+    let opts = SimOptions { current_noise_a, ..SimOptions::default() };
+    ClosedLoop::new(motor, base, Mode::OpenLoop, Compensation::Off, &opts)?;
+    write_runs(out_dir, &plan.runs, tick, |i, r| {
+        let rows = simulate_open_loop_run(motor, base, r, current_noise_a, run_seed(seed, i as u64))?;
+        Ok(rows.iter().map(SensorlessRow::from).collect())
+    })
+}
+
+/// Simulates `runs` in parallel with `sim` (given the run's index) and writes each run's
+/// rows to `out_dir/<name>.csv` as soon as it is done (creating the directory); `tick` once
+/// per run. On an error the files already written are removed again.
+fn write_runs<R: serde::Serialize>(
+    out_dir: &Path,
+    runs: &[PlannedRun],
+    tick: &(dyn Fn() + Sync),
+    sim: impl Fn(usize, &PlannedRun) -> Result<Vec<R>, SimError> + Sync,
+) -> Result<Vec<PathBuf>, PlanError> {
     std::fs::create_dir_all(out_dir).map_err(|source| PlanError::Write { path: out_dir.to_path_buf(), source })?;
     let written = std::sync::Mutex::new(Vec::new());
-    let done = for_each_run(motor, &plan.profile, Compensation::Off, &plan, o.current_noise_a, o.seed, |r, rows| {
-        let path = out_dir.join(format!("{}.csv", r.name));
-        write_rows_atomic(&path, &rows)?;
-        written.lock().unwrap_or_else(std::sync::PoisonError::into_inner).push(path.clone());
-        tick();
-        Ok::<_, PlanError>(path)
-    });
-    match done {
-        Ok(files) => Ok(PlanRun { plan, files }),
-        Err(e) => {
-            for f in written.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner) {
-                let _ = std::fs::remove_file(f);
-            }
-            Err(e)
+    let done: Result<Vec<PathBuf>, PlanError> = runs
+        .par_iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let rows = sim(i, r)?;
+            let path = out_dir.join(format!("{}.csv", r.name));
+            write_rows_atomic(&path, &rows)?;
+            written.lock().unwrap_or_else(std::sync::PoisonError::into_inner).push(path.clone());
+            tick();
+            Ok(path)
+        })
+        .collect();
+    if done.is_err() {
+        for f in written.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner) {
+            let _ = std::fs::remove_file(f);
         }
     }
+    done
 }
 
 /// Writes log rows to `path` through a temporary file in the same directory (a device,
 /// FIFO or `-` straight through; see [`stepdamp_out::Output`]): complete or not at all,
 /// also when the process is interrupted.
-pub fn write_rows_atomic(path: &Path, rows: &[LogRow]) -> Result<(), PlanError> {
+pub fn write_rows_atomic<R: serde::Serialize>(path: &Path, rows: &[R]) -> Result<(), PlanError> {
     let io_err = |source| PlanError::Write { path: path.to_path_buf(), source };
     // The output's message names the path already; keep only its reason here.
     let out_err = |e: stepdamp_out::OutError| match e.kind {

@@ -31,8 +31,39 @@ pub struct LogRow {
     pub v_b_v: f64,
 }
 
-/// Writes rows as CSV with the header of design.md §6.
-pub fn write_csv<W: std::io::Write>(w: W, rows: &[LogRow]) -> Result<(), csv::Error> {
+/// One row of a sensorless run log: what a drive without an encoder knows (the
+/// sensorless route of identification). Column names are the field names.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct SensorlessRow {
+    /// Time in s.
+    pub t_s: f64,
+    /// Commanded mechanical angle in rad.
+    pub theta_cmd_rad: f64,
+    /// Sampled phase A current in A.
+    pub i_a_a: f64,
+    /// Sampled phase B current in A.
+    pub i_b_a: f64,
+    /// Mean voltage across winding A over `[t_s, t_s + Ts)` in V, as applied.
+    pub v_a_v: f64,
+    /// Mean voltage across winding B over `[t_s, t_s + Ts)` in V, as applied.
+    pub v_b_v: f64,
+}
+
+impl From<&LogRow> for SensorlessRow {
+    fn from(r: &LogRow) -> Self {
+        SensorlessRow {
+            t_s: r.t_s,
+            theta_cmd_rad: r.theta_cmd_rad,
+            i_a_a: r.i_a_a,
+            i_b_a: r.i_b_a,
+            v_a_v: r.v_a_v,
+            v_b_v: r.v_b_v,
+        }
+    }
+}
+
+/// Writes rows (a [`LogRow`] or a [`SensorlessRow`]) as CSV, the header from the field names.
+pub fn write_csv<W: std::io::Write, R: Serialize>(w: W, rows: &[R]) -> Result<(), csv::Error> {
     let mut wr = csv::Writer::from_writer(w);
     for r in rows {
         wr.serialize(r)?;

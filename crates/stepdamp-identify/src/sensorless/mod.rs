@@ -18,6 +18,7 @@
 pub mod flux;
 pub mod log;
 pub mod plan;
+pub mod report;
 
 use crate::fit::FitOptions;
 use crate::log::{IqSource, RunLog};
@@ -36,12 +37,15 @@ pub fn winding(base: &Profile) -> Winding {
 
 /// Fit options for estimated-angle logs of a motor described by `base`: the servo route's
 /// ([`FitOptions::for_profile`]) without the encoder-specific parts (no counts per
-/// revolution, no quantisation correction, no servo bandwidth).
+/// revolution, no quantisation correction, no servo bandwidth, no warning about encoder
+/// steps against the travel: the estimated angle is continuous, its noise is not a servo's
+/// jitter).
 pub fn fit_options(base: &Profile, orders: &[u16]) -> FitOptions {
     FitOptions {
         counts_per_rev: None,
         servo_bandwidth_hz: None,
         correct_quantisation: false,
+        max_back_step_fraction: f64::INFINITY,
         ..FitOptions::for_profile(base, orders)
     }
 }

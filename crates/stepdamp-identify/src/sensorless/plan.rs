@@ -67,25 +67,17 @@ pub struct SensorlessPlan {
     pub options: SensorlessPlanOptions,
 }
 
-/// The CSV columns of [`SensorlessPlan::to_csv`].
-pub const PLAN_CSV_HEADER: &str = "run,speed_rad_s,duration_s,standstill_s,ramp_s";
-
 impl SensorlessPlan {
     /// Total logging time, s.
     pub fn total_s(&self) -> f64 {
         self.runs.iter().map(|r| r.duration_s).sum()
     }
 
-    /// One row per run: [`PLAN_CSV_HEADER`]. A run starts at rest holding `I_hold` at the
-    /// commanded angle for `standstill_s`, ramps at constant acceleration to `speed_rad_s`
-    /// over `ramp_s`, and holds it to `duration_s`; the log covers it all from `t = 0`.
-    pub fn to_csv(&self) -> String {
-        let mut s = String::from(PLAN_CSV_HEADER);
-        s.push('\n');
-        for r in &self.runs {
-            s += &format!("{},{},{},{},{}\n", r.name, r.speed_rad_s, r.duration_s, r.dwell_s, r.ramp_s);
-        }
-        s
+    /// One row per run ([`crate::plan::runs_csv`]): at rest holding `I_hold` at the
+    /// commanded angle for `standstill_s`, a constant-acceleration ramp to `speed_rad_s`
+    /// over `ramp_s`, then that speed to `duration_s`; the log covers it all from `t = 0`.
+    pub fn to_csv(&self) -> Result<String, csv::Error> {
+        crate::plan::runs_csv(&self.runs)
     }
 }
 

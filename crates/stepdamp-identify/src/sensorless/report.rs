@@ -1,0 +1,104 @@
+//! The sensorless route's report: how the angle was estimated, then the fit's report.
+
+use super::flux::ResistanceSource;
+use super::{AngleReport, SensorlessFit};
+use crate::fit::FitReport;
+use serde::Serialize;
+
+/// Warn when the flux circle's `Km` differs from the base profile's by more than this
+/// fraction (a wrong `Km` scales every identified torque; a wrong `L` shows here too).
+pub const KM_DISAGREEMENT: f64 = 0.1;
+
+/// What `stepdamp identify` prints on the sensorless route (text: `Display`; JSON:
+/// `Serialize`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SensorlessReport {
+    /// Always `"sensorless"` (tells a script which route ran).
+    pub route: &'static str,
+    /// The resistance used, Ω.
+    pub resistance_ohm: f64,
+    /// Where it came from.
+    pub resistance_source: ResistanceSource,
+    /// The base profile's resistance, Ω.
+    pub base_resistance_ohm: f64,
+    /// The base profile's `Km`, N·m/A (what the fit uses).
+    pub base_km_nm_per_a: f64,
+    /// Per log.
+    pub angles: Vec<AngleReport>,
+    /// Cautions about the estimate.
+    pub notes: Vec<String>,
+    /// The fit's report, as on the servo route.
+    pub fit: FitReport,
+}
+
+impl SensorlessReport {
+    /// The report of `f`, identified from a base profile with `R = base_resistance_ohm` and
+    /// `Km = base_km`.
+    pub fn new(base: &str, base_resistance_ohm: f64, base_km: f64, f: &SensorlessFit) -> Self {
+        let e = &f.estimated;
+        let mut notes = Vec::new();
+        for a in &e.angles {
+            let rel = a.km_from_flux_nm_per_a / base_km - 1.0;
+            if rel.abs() > KM_DISAGREEMENT {
+                notes.push(format!(
+                    "{}: the flux circle gives Km = {:.4} N·m/A, {:+.0} % from the base's {base_km:.4}: check Km and L in the base profile (the fit uses its Km, and L enters the angle)",
+                    a.log,
+                    a.km_from_flux_nm_per_a,
+                    100.0 * rel
+                ));
+            }
+        }
+        if e.resistance_source == ResistanceSource::Base {
+            notes.push(format!(
+                "no log starts with a standstill of at least {:.2} s: R is the base's {base_resistance_ohm:.4} Ω, untrimmed; its error turns the angle by ΔR·I/(Km·ω) (docs/sensorless.md)",
+                super::flux::FluxOptions::default().min_standstill_s
+            ));
+        }
+        SensorlessReport {
+            route: "sensorless",
+            resistance_ohm: e.resistance_ohm,
+            resistance_source: e.resistance_source,
+            base_resistance_ohm,
+            base_km_nm_per_a: base_km,
+            angles: e.angles.clone(),
+            notes,
+            fit: FitReport::new(base, f.fit.clone()),
+        }
+    }
+}
+
+impl std::fmt::Display for SensorlessReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(
+            f,
+            "route: sensorless (the logs have no theta_fb_rad): the rotor angle from ∫(v − R·i)dt − L·i (docs/sensorless.md)"
+        )?;
+        match self.resistance_source {
+            ResistanceSource::Standstill => writeln!(
+                f,
+                "R trimmed at standstill: {:.5} Ω ({:+.2} % from the base's {:.5} Ω), written to the identified profile",
+                self.resistance_ohm,
+                100.0 * (self.resistance_ohm / self.base_resistance_ohm - 1.0),
+                self.base_resistance_ohm
+            )?,
+            ResistanceSource::Base => writeln!(f, "R: the base's {:.5} Ω (not trimmed)", self.resistance_ohm)?,
+        }
+        for a in &self.angles {
+            write!(f, "  {}: standstill {:.2} s", a.log, a.standstill_s)?;
+            if let Some(r) = a.resistance_ohm {
+                write!(f, " (R {r:.5} Ω)")?;
+            }
+            writeln!(
+                f,
+                ", Km from the flux {:.4} N·m/A (base {:.4}), radius ripple {:.2} %",
+                a.km_from_flux_nm_per_a,
+                self.base_km_nm_per_a,
+                100.0 * a.radius_ripple
+            )?;
+        }
+        for n in &self.notes {
+            writeln!(f, "note: {n}")?;
+        }
+        write!(f, "{}", self.fit)
+    }
+}
