@@ -79,7 +79,10 @@ fn simulate_writes_a_run_log_with_the_documented_columns() {
     assert!(o.status.success(), "{}", stderr(&o));
     let text = std::fs::read_to_string(&log).unwrap();
     let mut lines = text.lines();
-    assert_eq!(lines.next().unwrap(), "t_s,theta_cmd_rad,theta_fb_rad,omega_fb_rad_s,i_a_a,i_b_a,i_d_a,i_q_a,iq_cmd_a");
+    assert_eq!(
+        lines.next().unwrap(),
+        "t_s,theta_cmd_rad,theta_fb_rad,omega_fb_rad_s,i_a_a,i_b_a,i_d_a,i_q_a,iq_cmd_a,v_a_v,v_b_v"
+    );
     // One row per 50 µs control period.
     assert_eq!(lines.count(), 6000);
     assert_eq!(files_in(dir.path()), ["run.csv"]);

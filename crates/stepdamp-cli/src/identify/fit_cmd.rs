@@ -10,6 +10,9 @@ pub(super) fn run_fit_cmd(a: FitArgs, _global: &Global) -> Result<()> {
     }
     let base = load_motor(motor)?;
     let orders = parse_orders(&a.orders)?;
+    if a.sensorless || route_of(&a.logs)? == stepdamp_identify::sensorless::log::LogKind::Sensorless {
+        return run_sensorless_fit_cmd(&a, &base, &orders, out);
+    }
     let effort = match a.effort.as_str() {
         "measured" => Effort::MeasuredIq,
         "command" => Effort::CommandIq,

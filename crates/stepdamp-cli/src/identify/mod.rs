@@ -3,8 +3,8 @@
 //!
 //! ```text
 //! stepdamp identify --log a.csv --log b.csv --motor base.toml --out identified.toml [--orders 1,2,4] [--report DIR]
-//! stepdamp identify plan   --motor FILE
-//! stepdamp identify run    --motor FILE --out DIR [--refine] [--report]
+//! stepdamp identify plan   --motor FILE [--sensorless] [--format text|json|csv]
+//! stepdamp identify run    --motor FILE --out DIR [--refine] [--report] [--sensorless]
 //! stepdamp identify static --table curve.csv --motor base.toml --out identified.toml [--sign on-rotor|holding]
 //! ```
 
@@ -30,10 +30,13 @@ use stepdamp_sim::Profile;
 mod fit_cmd;
 mod report;
 mod run_cmd;
+mod sensorless_cmd;
 
 use fit_cmd::*;
 use report::*;
 use run_cmd::*;
+use sensorless_cmd::*;
+use stepdamp_identify::plan::PlannedRun;
 
 /// Arguments of `stepdamp identify`.
 #[derive(clap::Args, Debug)]
@@ -59,8 +62,10 @@ enum IdentifyCommand {
 /// Identification from logs (the default action).
 #[derive(clap::Args, Debug)]
 struct FitArgs {
-    /// A servo-mode run log (CSV, design.md §6). Needs t_s, theta_fb_rad and i_q_a (or
-    /// i_a_a and i_b_a); repeat for several runs (two speeds, both directions).
+    /// A run log (CSV, docs/files.md). A servo-mode log needs t_s, theta_fb_rad and i_q_a
+    /// (or i_a_a and i_b_a). A log without theta_fb_rad takes the sensorless route (said so
+    /// in the output; docs/sensorless.md): it needs t_s, theta_cmd_rad, i_a_a, i_b_a,
+    /// v_a_v, v_b_v of the runs of `identify plan --sensorless`. Repeat for several runs.
     #[arg(long = "log", value_name = "CSV")]
     logs: Vec<PathBuf>,
     /// Base motor profile (preset or TOML): Km, Nr, encoder and servo settings are taken
@@ -101,6 +106,10 @@ struct FitArgs {
     /// Name of the identified profile (default: base name + "-identified").
     #[arg(long)]
     name: Option<String>,
+    /// Take the sensorless route even when the logs have theta_fb_rad (to compare the two
+    /// routes on the same runs; the encoder angle is then not read).
+    #[arg(long)]
+    sensorless: bool,
 }
 
 /// `stepdamp identify plan`.
@@ -115,9 +124,28 @@ struct PlanArgs {
     /// Electrical periods of steady running per run.
     #[arg(long, default_value_t = 40.0, allow_negative_numbers = true)]
     periods: f64,
-    /// text, or json: the plan (stepdamp_identify::plan::Plan) as one line of JSON.
+    /// Plan open-loop runs for the sensorless route (no encoder: the drive's own voltages
+    /// and currents), with a standstill that trims R.
+    #[arg(long)]
+    sensorless: bool,
+    /// text; json: the plan (stepdamp_identify::plan::Plan, or
+    /// stepdamp_identify::sensorless::plan::SensorlessPlan) as one line of JSON; csv: one
+    /// row per run, columns run,speed_rad_s,duration_s,standstill_s,ramp_s.
     #[arg(long, value_enum, default_value_t)]
-    format: Format,
+    format: PlanFormat,
+}
+
+/// Output of `identify plan`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, Default, PartialEq, Eq)]
+enum PlanFormat {
+    /// For people: the runs with their reasons.
+    #[default]
+    Text,
+    /// One JSON object.
+    Json,
+    /// One row per run (run,speed_rad_s,duration_s,standstill_s,ramp_s), for a script or
+    /// another drive to perform exactly the plan.
+    Csv,
 }
 
 /// `stepdamp identify run`.
@@ -150,6 +178,10 @@ struct RunArgs {
     /// Seed of the noise generators.
     #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     seed: u64,
+    /// Simulate the sensorless plan (open loop, no encoder; logs with the applied
+    /// voltages), identify from it and write DIR/identified.toml with R trimmed.
+    #[arg(long)]
+    sensorless: bool,
     /// Most refinement iterations.
     #[arg(long, default_value_t = 3, allow_negative_numbers = true)]
     iterations: i64,
@@ -238,12 +270,11 @@ fn plan_options(orders: &[u16], periods: f64) -> Result<PlanOptions> {
 fn run_plan_cmd(a: PlanArgs) -> Result<()> {
     let motor = load_motor(&a.motor)?;
     let orders = parse_orders(&a.orders)?;
-    let p = plan(&motor, &plan_options(&orders, a.periods)?)?;
-    match a.format {
-        Format::Text => outln!("{p}"),
-        Format::Json => print_json(&p)?,
+    if a.sensorless {
+        return run_sensorless_plan_cmd(&a, &motor, &orders);
     }
-    Ok(())
+    let p = plan(&motor, &plan_options(&orders, a.periods)?)?;
+    print_plan(&p, &p, &p.runs, a.format)
 }
 
 /// Reads the logs in parallel; the first error (in argument order) wins.

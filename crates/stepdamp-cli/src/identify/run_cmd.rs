@@ -21,6 +21,9 @@ pub(super) fn run_run_cmd(a: RunArgs, global: &Global) -> Result<()> {
     if !(a.current_noise.is_finite() && a.current_noise >= 0.0) {
         bail!("--current-noise {}: must be a finite number ≥ 0 A", a.current_noise);
     }
+    if a.sensorless {
+        return run_sensorless_run_cmd(&a, global, &motor, &orders);
+    }
     if a.report && !a.refine {
         bail!("--report needs --refine (it plots the identification)");
     }

@@ -1,0 +1,140 @@
+//! `stepdamp identify` on the sensorless route (issue 16), end to end through the binary.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn stepdamp(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_stepdamp")).args(args).output().expect("runs")
+}
+
+fn text(o: &Output) -> (String, String) {
+    (String::from_utf8_lossy(&o.stdout).into_owned(), String::from_utf8_lossy(&o.stderr).into_owned())
+}
+
+/// A failed command: non-zero exit, one `error:` line naming `needle`, no panic.
+fn assert_clean_error(o: &Output, needle: &str) {
+    let (_, err) = text(o);
+    assert!(!o.status.success(), "expected failure: {err}");
+    let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert!(lines.len() == 1 && lines[0].starts_with("error:") && err.contains(needle), "{err}");
+}
+
+#[test]
+fn the_sensorless_plan_as_csv_has_the_documented_columns() {
+    let o = stepdamp(&["identify", "plan", "--sensorless", "--motor", "patent-motor", "--format", "csv"]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    let mut lines = out.lines();
+    assert_eq!(lines.next(), Some("run,speed_rad_s,duration_s,standstill_s,ramp_s"));
+    let rows: Vec<Vec<String>> = lines.map(|l| l.split(',').map(str::to_string).collect()).collect();
+    assert_eq!(rows.len(), 4);
+    for r in &rows {
+        let v: Vec<f64> = r[1..].iter().map(|x| x.parse().unwrap()).collect();
+        assert!(v[0].abs() > 0.1 && v[1] > v[2] + v[3] && v[2] >= 0.02, "{r:?}");
+    }
+    // Both directions at two speeds.
+    assert!(rows[0][1].parse::<f64>().unwrap() > 0.0 && rows[1][1].parse::<f64>().unwrap() < 0.0);
+}
+
+fn logs_in(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path().display().to_string())
+        .filter(|p| p.contains("sensorless-") && p.ends_with(".csv"))
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn run_then_identify_without_an_encoder_recovers_the_detent_and_trims_r() {
+    let dir = tempfile::tempdir().unwrap();
+    let runs = dir.path().join("runs");
+    let o = stepdamp(&[
+        "--quiet",
+        "identify",
+        "run",
+        "--sensorless",
+        "--motor",
+        "patent-motor",
+        "--periods",
+        "8",
+        "--current-noise",
+        "0.005",
+        "--out",
+        runs.to_str().unwrap(),
+    ]);
+    let (_, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    let logs = logs_in(&runs);
+    assert_eq!(logs.len(), 4);
+    // What a drive without an encoder logs: no theta_fb_rad.
+    let head = std::fs::read_to_string(&logs[0]).unwrap();
+    assert_eq!(head.lines().next(), Some("t_s,theta_cmd_rad,i_a_a,i_b_a,v_a_v,v_b_v"));
+    for f in ["plan.txt", "plan.csv", "base.toml", "identified.toml"] {
+        assert!(runs.join(f).is_file(), "{f}");
+    }
+    // A datasheet base: R 10 % high, no detent.
+    let base = dir.path().join("datasheet.toml");
+    let toml = std::fs::read_to_string(runs.join("base.toml")).unwrap();
+    let toml = toml.replace("resistance_ohm = 0.9", "resistance_ohm = 0.99");
+    assert!(toml.contains("0.99"), "{toml}");
+    std::fs::write(&base, toml).unwrap();
+    let out = dir.path().join("id.toml");
+    let mut args = vec!["identify", "--motor", base.to_str().unwrap(), "--out", out.to_str().unwrap()];
+    for l in &logs {
+        args.extend(["--log", l]);
+    }
+    let o = stepdamp(&args);
+    let (stdout, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(stdout.contains("route: sensorless") && stdout.contains("R trimmed at standstill"), "{stdout}");
+    let id = std::fs::read_to_string(&out).unwrap();
+    let value = |key: &str| -> f64 {
+        id.lines()
+            .find_map(|l| l.strip_prefix(key))
+            .and_then(|v| v.trim_start_matches([' ', '=']).split_whitespace().next())
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    assert!((value("resistance_ohm") / 0.9 - 1.0).abs() < 1e-3, "{id}");
+    assert!(id.matches("[[motor.detent]]").count() == 3, "{id}");
+    // The JSON report says which route ran.
+    args.extend(["--format", "json"]);
+    let (stdout, _) = text(&stepdamp(&args));
+    assert!(stdout.starts_with("{\"route\":\"sensorless\""), "{stdout}");
+}
+
+#[test]
+fn sensorless_misuse_fails_with_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let enc = d.join("enc.csv");
+    let sl = d.join("sl.csv");
+    std::fs::write(&enc, "t_s,theta_fb_rad,i_q_a\n0,0,0\n").unwrap();
+    std::fs::write(&sl, "t_s,theta_cmd_rad,i_a_a,i_b_a,v_a_v,v_b_v\n0,0,1,0,0.9,0\n").unwrap();
+    let out = d.join("id.toml");
+    let o = |extra: &[&str]| {
+        let mut a = vec!["identify", "--motor", "patent-motor", "--out", out.to_str().unwrap()];
+        a.extend_from_slice(extra);
+        stepdamp(&a)
+    };
+    assert_clean_error(&o(&["--log", enc.to_str().unwrap(), "--log", sl.to_str().unwrap()]), "one route");
+    assert_clean_error(&o(&["--log", sl.to_str().unwrap(), "--ff-on"]), "--ff-on");
+    // A sensorless log missing a voltage names it.
+    std::fs::write(&sl, "t_s,theta_cmd_rad,i_a_a,i_b_a,v_a_v\n0,0,1,0,0.9\n").unwrap();
+    assert_clean_error(&o(&["--log", sl.to_str().unwrap()]), "v_b_v");
+    let r = stepdamp(&[
+        "identify",
+        "run",
+        "--sensorless",
+        "--refine",
+        "--motor",
+        "patent-motor",
+        "--out",
+        d.join("r").to_str().unwrap(),
+    ]);
+    assert_clean_error(&r, "--refine");
+    assert!(!d.join("id.toml").exists() && !d.join("r").exists());
+}
