@@ -79,7 +79,7 @@ pub fn simulate<'py>(
     let n = (duration_s * pwm).round() as usize;
     let (cols, m) = py
         .allow_threads(move || -> Result<_, stepdamp_sim::SimError> {
-            let mut cols: [Vec<f64>; 9] = std::array::from_fn(|_| Vec::with_capacity(n));
+            let mut cols: [Vec<f64>; 11] = std::array::from_fn(|_| Vec::with_capacity(n));
             let m = run(&mut lp, &spec, pwm, |k, rec| {
                 let r = LogRow::from_record(k, pwm, nr, rec);
                 for (c, v) in cols.iter_mut().zip([
@@ -92,6 +92,8 @@ pub fn simulate<'py>(
                     r.i_d_a,
                     r.i_q_a,
                     r.iq_cmd_a,
+                    r.v_a_v,
+                    r.v_b_v,
                 ]) {
                     c.push(v);
                 }
@@ -100,8 +102,19 @@ pub fn simulate<'py>(
         })
         .map_err(err)?;
     let log = PyDict::new(py);
-    let names =
-        ["t_s", "theta_cmd_rad", "theta_fb_rad", "omega_fb_rad_s", "i_a_a", "i_b_a", "i_d_a", "i_q_a", "iq_cmd_a"];
+    let names = [
+        "t_s",
+        "theta_cmd_rad",
+        "theta_fb_rad",
+        "omega_fb_rad_s",
+        "i_a_a",
+        "i_b_a",
+        "i_d_a",
+        "i_q_a",
+        "iq_cmd_a",
+        "v_a_v",
+        "v_b_v",
+    ];
     for (name, c) in names.into_iter().zip(cols) {
         column(py, &log, name, c)?;
     }

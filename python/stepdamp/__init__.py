@@ -82,7 +82,8 @@ def simulate(
 
     Returns the run log, one row per control period, columns ``t_s``, ``theta_cmd_rad``,
     ``theta_fb_rad``, ``omega_fb_rad_s``, ``i_a_a``, ``i_b_a``, ``i_d_a``, ``i_q_a``,
-    ``iq_cmd_a``: a pandas DataFrame when pandas is installed (``as_frame=None``), else a
+    ``iq_cmd_a``, ``v_a_v``, ``v_b_v`` (the mean winding voltages applied over each period,
+    V; what the sensorless route integrates): a pandas DataFrame when pandas is installed (``as_frame=None``), else a
     dict of numpy arrays. With ``return_metrics=True``, ``(log, metrics)`` where metrics
     has ``vel_err_rms_rad_s``, ``vel_err_pp_rad_s``, ``lost_sync``,
     ``max_load_angle_e_rad``.

@@ -56,7 +56,7 @@ def test_simulate_returns_the_run_log_columns_and_the_clis_metrics(cli):
     log, m = stepdamp.simulate(p, "open-loop", "patent", speed_rad_s=8.4, duration_s=0.4, return_metrics=True)
     assert isinstance(log, pd.DataFrame)
     assert list(log.columns) == ["t_s", "theta_cmd_rad", "theta_fb_rad", "omega_fb_rad_s", "i_a_a", "i_b_a",
-                                 "i_d_a", "i_q_a", "iq_cmd_a"]
+                                 "i_d_a", "i_q_a", "iq_cmd_a", "v_a_v", "v_b_v"]
     assert len(log) == 8000 and log["t_s"].iloc[1] == 1 / 20000
     rc, out, _ = cli("simulate", "--speed", 8.4, "--duration", 0.4, "--compensation", "patent")
     assert rc == 0
