@@ -4,7 +4,7 @@
 //! (tested): the controllers are stepped one by one as in a single run, and the plant
 //! integrator has no cross-lane arithmetic.
 //!
-//! Also home of the per-run metrics accumulator ([`Window`]) and the divergence stop that
+//! Also home of the per-run metrics accumulator (`Window`) and the divergence stop that
 //! single runs and lock-step runs share.
 
 use crate::closed_loop::{ClosedLoop, PeriodRecord, SimError};
@@ -107,8 +107,9 @@ impl Window {
 /// plant model means but well below where `f64` arithmetic breaks down.
 pub const DIVERGED_CURRENT_A: f64 = 1.0e6;
 
-/// Largest rotor speed in rad/s a simulation may reach before it counts as diverged: a
-/// hundred times [`crate::scenario::MAX_SPEED_RAD_S`] (about 10 million rpm).
+/// Largest rotor speed in rad/s a simulation may reach before it counts as diverged (about
+/// 10 million rpm): over a thousand times the fastest command a run accepts
+/// ([`crate::scenario::max_speed_rad_s`], 628 rad/s for the patent motor at 20 kHz).
 pub const DIVERGED_SPEED_RAD_S: f64 = 1.0e6;
 
 /// [`SimError::Diverged`] at `t_s` naming the first variable of `x` that is NaN, infinite
