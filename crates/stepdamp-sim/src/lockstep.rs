@@ -180,6 +180,8 @@ pub fn run_lockstep<const N: usize>(
     }
     let mut failed: Vec<Option<SimError>> = (0..N).map(|_| None).collect();
     let (mut va, mut vb, mut load) = ([0.0; N], [0.0; N], [0.0; N]);
+    // The plants live in the lanes; each loop gets a copy of its lane to sample.
+    let mut x = StateLanes::<N>::from_states(&std::array::from_fn(|i| loops[i].x));
     for k in 0..n {
         for i in 0..N {
             let w_cmd = specs[i].speed_at(windows[i].time(k));
@@ -196,7 +198,6 @@ pub fn run_lockstep<const N: usize>(
         if failed.iter().all(Option::is_some) {
             break;
         }
-        let mut x = StateLanes::<N>::from_states(&std::array::from_fn(|i| loops[i].x));
         for _ in 0..substeps {
             integrator.rk4(&mut x, &va, &vb, &load, h, band);
         }
