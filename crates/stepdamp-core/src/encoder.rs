@@ -20,7 +20,7 @@ use crate::lowpass::LowPass;
 const MAX_COUNTS_PER_REV: u32 = crate::limits::COUNTS_PER_REV.max as u32;
 /// Largest pole-pair count [`Encoder::new`] keeps (as [`crate::Config::new`] accepts).
 const MAX_POLE_PAIRS: u16 = crate::limits::POLE_PAIRS.max as u16;
-// The long division's bound (see `shl31_div`) holds for the range the limits allow.
+// The long division's bound (see `shl31_long_div`) holds for the range the limits allow.
 const _: () = assert!(MAX_COUNTS_PER_REV <= 1 << 21 && MAX_POLE_PAIRS as u32 <= 1 << 10);
 
 /// Encoder configuration, fixed at start-up.
@@ -74,7 +74,10 @@ impl Encoder {
         // division (no 64-bit division on the chip): floor division of a signed count.
         let cpr = self.counts_per_rev;
         let mag = delta.unsigned_abs();
-        let (q, m) = (mag / cpr, mag % cpr);
+        // On 64-bit hosts (the simulator) skip the division in the usual case of less than
+        // a revolution per period; the chip's code stays as it was (counted instructions).
+        let (q, m) =
+            if cfg!(target_pointer_width = "64") && mag < cpr.get() { (0, mag) } else { (mag / cpr, mag % cpr) };
         let (mut turns, extra) = if delta >= 0 {
             (i64::from(q), m)
         } else if m == 0 {
@@ -107,11 +110,28 @@ impl Encoder {
     }
 }
 
+/// `⌊n·2³¹ / d⌋` exactly, for `d ≤ 2²¹`: on 64-bit targets (the simulator's hosts) one
+/// 64-bit division, a single instruction there; elsewhere [`shl31_long_div`]. The same
+/// result either way (test `long_division_matches_64_bit_division`).
+#[cfg(target_pointer_width = "64")]
+#[inline]
+fn shl31_div(n: u32, d: NonZeroU32) -> u64 {
+    (u64::from(n) << 31) / core::num::NonZeroU64::from(d)
+}
+
+/// See the 64-bit variant.
+#[cfg(not(target_pointer_width = "64"))]
+#[inline]
+fn shl31_div(n: u32, d: NonZeroU32) -> u64 {
+    shl31_long_div(n, d)
+}
+
 /// `⌊n·2³¹ / d⌋` exactly, for `d ≤ 2²¹`, by long division in 32-bit steps (11, 10 and 10
 /// bits; each shifted remainder is below `d·2¹¹ ≤ 2³²`): the Cortex-M4 divides 32-bit
 /// integers in hardware but 64-bit ones in a ~70-instruction library routine.
+#[cfg_attr(target_pointer_width = "64", allow(dead_code))] // tested on every target
 #[inline]
-fn shl31_div(n: u32, d: NonZeroU32) -> u64 {
+fn shl31_long_div(n: u32, d: NonZeroU32) -> u64 {
     let (q0, r) = (n / d, n % d);
     let (q1, r) = ((r << 11) / d, (r << 11) % d);
     let (q2, r) = ((r << 10) / d, (r << 10) % d);
@@ -128,7 +148,9 @@ mod tests {
         #[test]
         fn long_division_matches_64_bit_division(n in any::<u32>(), d in 1u32..=(1 << 21)) {
             let d = NonZeroU32::new(d).unwrap();
-            prop_assert_eq!(shl31_div(n, d), (u64::from(n) << 31) / u64::from(d.get()));
+            let want = (u64::from(n) << 31) / u64::from(d.get());
+            prop_assert_eq!(shl31_long_div(n, d), want);
+            prop_assert_eq!(shl31_div(n, d), want);
         }
 
         #[test]
@@ -148,6 +170,27 @@ mod tests {
                 let units = (2 * total + 1) * i128::from(np) * (1i128 << 31);
                 let want = units.div_euclid(i128::from(cpr));
                 prop_assert_eq!(p.0, want as i64);
+                prop_assert!(st.rem < cpr);
+            }
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn position_is_exact_for_small_moves_too(
+            counts in proptest::collection::vec(-5000i32..5000, 1..200), cpr in 1u32..=20_000, np in 1u16..=1024
+        ) {
+            // Moves below a revolution per period (the usual case, which 64-bit hosts take
+            // without a division) and beyond, against the exact arithmetic.
+            let enc = Encoder::new(cpr, np, 5e-5, 100.0);
+            let mut st = EncoderState::default();
+            let (mut raw, mut total) = (0u32, 0i128);
+            for c in counts {
+                raw = raw.wrapping_add(c as u32);
+                total += i128::from(c);
+                let p = enc.update(&mut st, raw);
+                let units = (2 * total + 1) * i128::from(np) * (1i128 << 31);
+                prop_assert_eq!(p.0, units.div_euclid(i128::from(cpr)) as i64);
                 prop_assert!(st.rem < cpr);
             }
         }

@@ -13,7 +13,8 @@
 //! - `sin`/`cos` of the electrical angle come from [`sin_cos`], a branch-free polynomial
 //!   (fdlibm's kernels after a Cody–Waite reduction) that vectorises over the lanes,
 //!   instead of the C library's scalar `sincos`, once per RK4 step: the other three
-//!   stages rotate it by their small angle step (`rotated`);
+//!   stages rotate it by their small angle steps (`angles::StageAngles`: one short series for
+//!   the half step, two shorter ones for the acceleration's share);
 //! - the detent series `Σ A_k sin(kθe + φ_k)` takes `sin kθe, cos kθe` by angle addition
 //!   along a ladder of squarings and single steps that skips the orders not present
 //!   (orders 1, 2, 4: two complex squarings), in registers;
@@ -24,6 +25,10 @@
 
 use crate::friction::FrictionLaw;
 use crate::plant::{PlantParams, PlantState, friction_substeps};
+
+mod angles;
+pub use angles::{NUDGE_LIMIT, ROTATION_LIMIT, SIN_COS_POLY_LIMIT, sin_cos};
+use angles::{SinCosLanes, StageAngles, sin_cos_lanes};
 
 /// Plants integrated side by side in a sweep: eight `f64` lanes, four SSE2 (two AVX)
 /// registers per quantity, and eight independent dependency chains for the out-of-order
@@ -59,129 +64,6 @@ impl<const N: usize> StateLanes<N> {
         PlantState { i_a: self.i_a[i], i_b: self.i_b[i], theta: self.theta[i], omega: self.omega[i] }
     }
 }
-
-/// `|x|` up to which [`sin_cos`] uses its polynomial: the Cody–Waite reduction below is
-/// exact while the quadrant count `q = round(2x/π)` has at most 20 bits. Beyond (an
-/// electrical angle of 10⁶ rad is 3,200 revolutions of a 50-pole-pair rotor), and for
-/// non-finite `x`, it calls `f64::sin_cos`.
-pub const SIN_COS_POLY_LIMIT: f64 = 1.0e6;
-
-/// `(sin x, cos x)`, with an absolute error within 1.2e-16 of `f64::sin_cos` for
-/// `|x| ≤` [`SIN_COS_POLY_LIMIT`] (test `sin_cos_matches_the_library_within_its_bound`).
-///
-/// Reduction: `q = round(2x/π)` by the `1.5·2⁵²` rounding trick (its low bits are the
-/// quadrant), `r = x − q·π/2` with π/2 split in fdlibm's 33 + 33 + 53-bit parts
-/// (`pio2_1`, `pio2_2`, `pio2_2t`); then fdlibm's `__kernel_sin`/`__kernel_cos` minimax
-/// polynomials on `|r| ≤ π/4` (error < 1 ulp), and the quadrant picks and signs them by
-/// bit operations. No branch: it vectorises.
-#[inline(always)]
-pub fn sin_cos(x: f64) -> (f64, f64) {
-    const ROUND: f64 = 6_755_399_441_055_744.0; // 1.5·2^52
-    // fdlibm's constants (e_rem_pio2.c, k_sin.c, k_cos.c), by their bits.
-    const PIO2_1: f64 = f64::from_bits(0x3FF9_21FB_5440_0000); // first 33 bits of π/2
-    const PIO2_2: f64 = f64::from_bits(0x3DD0_B461_1A60_0000); // next 33 bits
-    const PIO2_2T: f64 = f64::from_bits(0x3BA3_198A_2E03_7073); // π/2 − PIO2_1 − PIO2_2
-    const S: [f64; 6] = [
-        f64::from_bits(0xBFC5_5555_5555_5549), // −1/3!
-        f64::from_bits(0x3F81_1111_1110_F8A6),
-        f64::from_bits(0xBF2A_01A0_19C1_61D5),
-        f64::from_bits(0x3EC7_1DE3_57B1_FE7D),
-        f64::from_bits(0xBE5A_E5E6_8A2B_9CEB),
-        f64::from_bits(0x3DE5_D93A_5ACF_D57C),
-    ];
-    const C: [f64; 6] = [
-        f64::from_bits(0x3FA5_5555_5555_554C), // 1/4!
-        f64::from_bits(0xBF56_C16C_16C1_5177),
-        f64::from_bits(0x3EFA_01A0_19CB_1590),
-        f64::from_bits(0xBE92_7E4F_809C_52AD),
-        f64::from_bits(0x3E21_EE9E_BDB4_B1C4),
-        f64::from_bits(0xBDA8_FAE9_BE88_38D4),
-    ];
-    let t = x * core::f64::consts::FRAC_2_PI + ROUND;
-    let q = t - ROUND;
-    // t = 1.5·2^52 + q: the mantissa's low bits are q's (two's complement, mod 4).
-    let n = t.to_bits();
-    let r = ((x - q * PIO2_1) - q * PIO2_2) - q * PIO2_2T;
-    let z = r * r;
-    let v = z * r;
-    let sp = S[1] + z * (S[2] + z * (S[3] + z * (S[4] + z * S[5])));
-    let sin_r = r + v * (S[0] + z * sp);
-    let cp = z * (C[0] + z * (C[1] + z * (C[2] + z * (C[3] + z * (C[4] + z * C[5])))));
-    let hz = 0.5 * z;
-    let w = 1.0 - hz;
-    let cos_r = w + (((1.0 - w) - hz) + z * cp);
-    // Quadrant n mod 4: (sin, cos) = (s, c), (c, −s), (−s, −c), (−c, s).
-    let swap = (n & 1).wrapping_neg();
-    let (sb, cb) = (sin_r.to_bits(), cos_r.to_bits());
-    let sin_bits = (sb & !swap) | (cb & swap);
-    let cos_bits = (cb & !swap) | (sb & swap);
-    (f64::from_bits(sin_bits ^ ((n & 2) << 62)), f64::from_bits(cos_bits ^ ((n.wrapping_add(1) & 2) << 62)))
-}
-
-/// [`sin_cos`] of every lane; lanes beyond [`SIN_COS_POLY_LIMIT`] (or not finite) are
-/// redone with `f64::sin_cos`, each by its own value, so a lane's result never depends on
-/// the others.
-#[inline(always)]
-fn sin_cos_lanes<const N: usize>(x: &[f64; N]) -> ([f64; N], [f64; N]) {
-    let mut s = [0.0; N];
-    let mut c = [0.0; N];
-    for i in 0..N {
-        (s[i], c[i]) = sin_cos(x[i]);
-    }
-    // Non-short-circuit `&`: one test for all lanes, not a branch per lane.
-    let in_range = x.iter().fold(true, |ok, v| ok & (v.abs() <= SIN_COS_POLY_LIMIT));
-    if !in_range {
-        for i in 0..N {
-            if x[i].is_nan() || x[i].abs() > SIN_COS_POLY_LIMIT {
-                (s[i], c[i]) = x[i].sin_cos();
-            }
-        }
-    }
-    (s, c)
-}
-
-/// Largest rotation in rad [`rotated`] takes by its short series (the README sweep's
-/// largest stage step is 0.1 rad at 40 rad/s and 20 kHz).
-pub const ROTATION_LIMIT: f64 = 0.25;
-
-/// `(sin, cos)` of the electrical angle `θe + δ` per lane, from `sc` = `(sin θe, cos θe)`:
-/// rotated by `δ` with `sin δ`, `cos δ` by their Taylor series to δ¹³ and δ¹² (truncation
-/// below 1e-19 for `|δ| ≤` [`ROTATION_LIMIT`]). A lane with a larger (or non-finite) `δ`
-/// takes [`sin_cos`] of `Nr·θ` from `theta` instead, decided by its own values only.
-#[inline(always)]
-fn rotated<const N: usize>(sc: &SinCosLanes<N>, delta: &[f64; N], theta: &[f64; N], nr: f64) -> SinCosLanes<N> {
-    let mut out = ([0.0; N], [0.0; N]);
-    for l in 0..N {
-        let d = delta[l];
-        let z = d * d;
-        let sd = d
-            * (1.0
-                + z * (-1.0 / 6.0
-                    + z * (1.0 / 120.0
-                        + z * (-1.0 / 5040.0
-                            + z * (1.0 / 362_880.0 + z * (-1.0 / 39_916_800.0 + z * (1.0 / 6_227_020_800.0)))))));
-        let cd = 1.0
-            + z * (-0.5
-                + z * (1.0 / 24.0
-                    + z * (-1.0 / 720.0
-                        + z * (1.0 / 40_320.0 + z * (-1.0 / 3_628_800.0 + z * (1.0 / 479_001_600.0))))));
-        out.0[l] = sc.0[l] * cd + sc.1[l] * sd;
-        out.1[l] = sc.1[l] * cd - sc.0[l] * sd;
-    }
-    let in_range = delta.iter().fold(true, |ok, d| ok & (d.abs() <= ROTATION_LIMIT));
-    if !in_range {
-        for l in 0..N {
-            if delta[l].is_nan() || delta[l].abs() > ROTATION_LIMIT {
-                let x = nr * theta[l];
-                (out.0[l], out.1[l]) = if x.abs() <= SIN_COS_POLY_LIMIT { sin_cos(x) } else { x.sin_cos() };
-            }
-        }
-    }
-    out
-}
-
-/// Per-lane `(sin, cos)` of one multiple of the electrical angle.
-type SinCosLanes<const N: usize> = ([f64; N], [f64; N]);
 
 /// The plant equations prepared for integration (one per motor, shared by all lanes).
 #[derive(Clone, Debug, PartialEq)]
@@ -288,14 +170,22 @@ impl<const N: usize> Integrator<N> {
         }
         let (mut sk, mut ck) = (*s, *c);
         for &(step, term, a, b) in &self.k.steps {
-            let (sb, cb) = match step {
-                Step::Square => (sk, ck),
-                Step::TimesZ => (*s, *c),
-            };
-            for l in 0..N {
-                let sn = sk[l] * cb[l] + ck[l] * sb[l];
-                ck[l] = ck[l] * cb[l] - sk[l] * sb[l];
-                sk[l] = sn;
+            match step {
+                // `s·c + c·s` is `2·(s·c)` exactly: one product fewer, the same bits.
+                Step::Square => {
+                    for l in 0..N {
+                        let sn = 2.0 * (sk[l] * ck[l]);
+                        ck[l] = ck[l] * ck[l] - sk[l] * sk[l];
+                        sk[l] = sn;
+                    }
+                }
+                Step::TimesZ => {
+                    for l in 0..N {
+                        let sn = sk[l] * c[l] + ck[l] * s[l];
+                        ck[l] = ck[l] * c[l] - sk[l] * s[l];
+                        sk[l] = sn;
+                    }
+                }
             }
             if term {
                 for l in 0..N {
@@ -417,15 +307,16 @@ impl<const N: usize> Integrator<N> {
         self.stick(x, Some(&sc1), load, band);
         let x1 = *x;
         let k1 = self.derivative(&x1, &sc1.0, &sc1.1, va, vb, load, band);
-        // The stages' angles are the first one's advanced by δ = Nr·a·ω: a rotation.
+        // The stages' angles are the first one's advanced by Nr·a·ω: rotations.
         let x2 = axpy(&x1, 0.5 * h, &k1);
-        let sc2 = rotated(&sc1, &k1.theta.map(|w| nr * (0.5 * h * w)), &x2.theta, nr);
+        let mut stages = StageAngles::new(nr);
+        let sc2 = stages.second(&sc1, &k1.theta.map(|w| nr * (0.5 * h * w)), &x2.theta);
         let k2 = self.derivative(&x2, &sc2.0, &sc2.1, va, vb, load, band);
         let x3 = axpy(&x1, 0.5 * h, &k2);
-        let sc3 = rotated(&sc1, &k2.theta.map(|w| nr * (0.5 * h * w)), &x3.theta, nr);
+        let sc3 = stages.third(&k2.theta.map(|w| nr * (0.5 * h * w)), &x3.theta);
         let k3 = self.derivative(&x3, &sc3.0, &sc3.1, va, vb, load, band);
         let x4 = axpy(&x1, h, &k3);
-        let sc4 = rotated(&sc1, &k3.theta.map(|w| nr * (h * w)), &x4.theta, nr);
+        let sc4 = stages.fourth(&k3.theta.map(|w| nr * (h * w)), &x4.theta);
         let k4 = self.derivative(&x4, &sc4.0, &sc4.1, va, vb, load, band);
         let w = h / 6.0;
         let comb = |x: &[f64; N], a: &[f64; N], b: &[f64; N], c: &[f64; N], d: &[f64; N]| {
@@ -473,70 +364,6 @@ fn axpy<const N: usize>(x: &StateLanes<N>, a: f64, k: &StateLanes<N>) -> StateLa
 mod tests {
     use super::*;
     use crate::profile::Profile;
-
-    #[test]
-    fn sin_cos_matches_the_library_within_its_bound() {
-        // A dense sweep of small angles, a coarser one to the limit, and the awkward
-        // points: multiples of π/4 (quadrant edges), ±0, the limit itself.
-        let mut worst: f64 = 0.0;
-        let mut check = |x: f64| {
-            let (s, c) = sin_cos(x);
-            let (s0, c0) = x.sin_cos();
-            let e = (s - s0).abs().max((c - c0).abs());
-            assert!(e <= 1.2e-16, "x = {x:e}: ({s:e}, {c:e}) vs ({s0:e}, {c0:e})");
-            worst = worst.max(e);
-        };
-        for i in -2_000_000..=2_000_000 {
-            check(f64::from(i) * 1e-5);
-        }
-        for i in -1_000_000..=1_000_000 {
-            check(f64::from(i) * (SIN_COS_POLY_LIMIT / 1e6) + 0.123_456_789 * f64::from(i % 7));
-        }
-        for k in -4000..=4000 {
-            let x = f64::from(k) * core::f64::consts::FRAC_PI_4;
-            for d in [-1e-12, 0.0, 1e-12] {
-                check(x + d);
-            }
-        }
-        for x in [0.0, -0.0, SIN_COS_POLY_LIMIT, -SIN_COS_POLY_LIMIT, 1e-300, 3000.5] {
-            check(x);
-        }
-        println!("largest |error| against f64::sin_cos: {worst:e}");
-    }
-
-    #[test]
-    fn a_rotated_angle_matches_its_sine_and_cosine_and_falls_back_beyond_the_limit() {
-        let nr = 50.0;
-        for i in -2000..=2000 {
-            let theta = f64::from(i) * 0.0317;
-            let sc = sin_cos_lanes(&[nr * theta]);
-            for j in -100..=100 {
-                // Up to twice the limit: half of these take the fallback.
-                let delta = f64::from(j) * (2.0 * ROTATION_LIMIT / 100.0);
-                let th2 = theta + delta / nr;
-                let (s, c) = rotated(&sc, &[delta], &[th2], nr);
-                if delta.abs() <= ROTATION_LIMIT {
-                    // The rotation by the library's sin δ, cos δ, to a few ulp.
-                    let (sd, cd) = delta.sin_cos();
-                    let (s0, c0) = (sc.0[0] * cd + sc.1[0] * sd, sc.1[0] * cd - sc.0[0] * sd);
-                    assert!((s[0] - s0).abs() <= 1e-15 && (c[0] - c0).abs() <= 1e-15, "θ {theta} δ {delta}");
-                } else {
-                    assert_eq!((s[0], c[0]), sin_cos(nr * th2), "θ {theta} δ {delta}");
-                }
-            }
-        }
-        let (s, c) = rotated(&sin_cos_lanes(&[1.0]), &[f64::NAN], &[0.5], 2.0);
-        assert_eq!((s[0], c[0]), sin_cos(1.0), "a NaN δ takes the angle itself");
-    }
-
-    #[test]
-    fn sin_cos_lanes_fall_back_beyond_the_limit_and_pass_nan_through() {
-        let x = [1e7, f64::NAN, f64::INFINITY, 2.0];
-        let (s, c) = sin_cos_lanes(&x);
-        assert_eq!((s[0], c[0]), 1e7f64.sin_cos());
-        assert!(s[1].is_nan() && c[1].is_nan() && s[2].is_nan() && c[2].is_nan());
-        assert_eq!((s[3], c[3]), sin_cos(2.0));
-    }
 
     #[test]
     fn the_detent_chain_equals_the_dense_series_for_any_set_of_orders() {

@@ -4,13 +4,14 @@
 //! (tested): the controllers are stepped one by one as in a single run, and the plant
 //! integrator has no cross-lane arithmetic.
 //!
-//! Also home of the per-run metrics accumulator ([`Window`]) and the divergence stop that
+//! Also home of the per-run metrics accumulator (`Window`) and the divergence stop that
 //! single runs and lock-step runs share.
 
 use crate::closed_loop::{ClosedLoop, PeriodRecord, SimError};
 use crate::lanes::{Integrator, StateLanes};
 use crate::plant::PlantState;
 use crate::scenario::{RunMetrics, RunSpec};
+use stepdamp_core::Position;
 use stepdamp_core::angle::UNITS_PER_ELECTRICAL_REV;
 
 /// Electrical rad per unit of the controller's fixed-point position.
@@ -50,14 +51,29 @@ impl Window {
     /// stops the run: [`SimError::Diverged`] at the period's time.
     #[inline]
     pub(crate) fn add(&mut self, k: usize, w_cmd: f64, rec: &PeriodRecord) -> Result<(), SimError> {
-        check_finite(self.time(k), &rec.plant)?;
+        self.add_sample(k, w_cmd, rec.plant, rec.signals.theta_cmd)
+    }
+
+    /// [`Window::add`] from the two fields of the record it reads: the sampled plant and
+    /// the controller's command angle. The lock-step loop passes them by value, so the
+    /// record itself is never built in memory (its copy from the controller's output,
+    /// written field by field and read back whole, stalled store-to-load forwarding).
+    #[inline(always)]
+    pub(crate) fn add_sample(
+        &mut self,
+        k: usize,
+        w_cmd: f64,
+        plant: PlantState,
+        theta_cmd: Position,
+    ) -> Result<(), SimError> {
+        check_finite(self.time(k), plant)?;
         // The command the controller used this period, against the sampled rotor.
         // Electrical: the command's fixed-point angle less Nr·θ (no division per period).
-        let theta_cmd_e = rec.signals.theta_cmd.0 as f64 * RAD_PER_UNIT;
-        let angle = (theta_cmd_e - f64::from(self.nr) * rec.plant.theta).abs();
+        let theta_cmd_e = theta_cmd.0 as f64 * RAD_PER_UNIT;
+        let angle = (theta_cmd_e - f64::from(self.nr) * plant.theta).abs();
         self.max_angle = self.max_angle.max(angle);
         if k >= self.start {
-            let e = rec.plant.omega - w_cmd;
+            let e = plant.omega - w_cmd;
             self.sum2 += e * e;
             self.lo = self.lo.min(e);
             self.hi = self.hi.max(e);
@@ -91,8 +107,9 @@ impl Window {
 /// plant model means but well below where `f64` arithmetic breaks down.
 pub const DIVERGED_CURRENT_A: f64 = 1.0e6;
 
-/// Largest rotor speed in rad/s a simulation may reach before it counts as diverged: a
-/// hundred times [`crate::scenario::MAX_SPEED_RAD_S`] (about 10 million rpm).
+/// Largest rotor speed in rad/s a simulation may reach before it counts as diverged (about
+/// 10 million rpm): over a thousand times the fastest command a run accepts
+/// ([`crate::scenario::max_speed_rad_s`], 628 rad/s for the patent motor at 20 kHz).
 pub const DIVERGED_SPEED_RAD_S: f64 = 1.0e6;
 
 /// [`SimError::Diverged`] at `t_s` naming the first variable of `x` that is NaN, infinite
@@ -102,7 +119,7 @@ pub const DIVERGED_SPEED_RAD_S: f64 = 1.0e6;
 /// The test runs every period of every run: it is inlined, and the naming of the variable
 /// is a separate cold function.
 #[inline(always)]
-fn check_finite(t_s: f64, x: &PlantState) -> Result<(), SimError> {
+fn check_finite(t_s: f64, x: PlantState) -> Result<(), SimError> {
     let (ci, cw) = (DIVERGED_CURRENT_A, DIVERGED_SPEED_RAD_S);
     // `<=` is false for NaN.
     if x.i_a.abs() <= ci && x.i_b.abs() <= ci && x.omega.abs() <= cw && x.theta.is_finite() {
@@ -114,7 +131,7 @@ fn check_finite(t_s: f64, x: &PlantState) -> Result<(), SimError> {
 /// The [`SimError::Diverged`] of a state that failed [`check_finite`].
 #[cold]
 #[inline(never)]
-fn diverged(t_s: f64, x: &PlantState) -> SimError {
+fn diverged(t_s: f64, x: PlantState) -> SimError {
     let (ci, cw) = (DIVERGED_CURRENT_A, DIVERGED_SPEED_RAD_S);
     let vars = [
         (x.i_a, ci, "phase A current i_a", "A"),
@@ -163,6 +180,8 @@ pub fn run_lockstep<const N: usize>(
     }
     let mut failed: Vec<Option<SimError>> = (0..N).map(|_| None).collect();
     let (mut va, mut vb, mut load) = ([0.0; N], [0.0; N], [0.0; N]);
+    // The plants live in the lanes; each loop gets a copy of its lane to sample.
+    let mut x = StateLanes::<N>::from_states(&std::array::from_fn(|i| loops[i].x));
     for k in 0..n {
         for i in 0..N {
             let w_cmd = specs[i].speed_at(windows[i].time(k));
@@ -171,7 +190,7 @@ pub fn run_lockstep<const N: usize>(
             if failed[i].is_none() {
                 // Against the speed the controller was commanded (as `scenario::run`).
                 let w_ctl = f64::from(loops[i].controller_state().speed_command_rad_s());
-                if let Err(e) = windows[i].add(k, w_ctl, &rec) {
+                if let Err(e) = windows[i].add_sample(k, w_ctl, rec.plant, rec.signals.theta_cmd) {
                     failed[i] = Some(e);
                 }
             }
@@ -179,7 +198,6 @@ pub fn run_lockstep<const N: usize>(
         if failed.iter().all(Option::is_some) {
             break;
         }
-        let mut x = StateLanes::<N>::from_states(&std::array::from_fn(|i| loops[i].x));
         for _ in 0..substeps {
             integrator.rk4(&mut x, &va, &vb, &load, h, band);
         }
