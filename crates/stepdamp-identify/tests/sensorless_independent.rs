@@ -41,6 +41,7 @@ fn drive() -> Drive {
         r_nominal: 0.9,
         l_nominal: 2.5e-3,
         noise_a: 0.005,
+        offset_a: [0.0; 2],
         switching: true,
     }
 }

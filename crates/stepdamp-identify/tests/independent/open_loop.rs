@@ -17,7 +17,8 @@
 //! * **Integration**: classical RK4 of `(i_a, i_b, θ, ω)` on each interval between switching
 //!   edges, in sub-steps of at most [`MAX_STEP_S`]; the Karnopp stick test between sub-steps.
 //! * **Drive**: samples both phase currents at the period start (the centre of the
-//!   `−V_bus` pulse, where the triangular ripple crosses its mean) with Gaussian sensor noise;
+//!   `−V_bus` pulse, where the triangular ripple crosses its mean) with Gaussian sensor noise
+//!   and optional offsets;
 //!   a PI current loop in the frame of the commanded electrical angle `θe_cmd = Nr·θ_cmd`
 //!   (`i_d* = I_hold`, `i_q* = 0`) tuned by pole-zero cancellation on its own nominal `R`
 //!   and `L` (`Kp = L·ω_c`, `Ki = R·ω_c`), the output rotated ahead by 1.5 periods of the
@@ -99,6 +100,8 @@ pub struct Drive {
     pub l_nominal: f64,
     /// Standard deviation of the current-sensor noise, A.
     pub noise_a: f64,
+    /// Current-sensor offsets of phases A and B, A (added to every sample).
+    pub offset_a: [f64; 2],
     /// Simulate the PWM edges (else the period's mean voltage).
     pub switching: bool,
 }
@@ -298,8 +301,8 @@ pub fn run(m: &Motor, d: &Drive, p: &PlanRow, seed: u64) -> (String, RunStats) {
         let t = k as f64 / d.pwm_hz;
         let (th_cmd, w_cmd) = command(p, t);
         // Sample.
-        let ia_m = x.ia + d.noise_a * gauss(&mut rng);
-        let ib_m = x.ib + d.noise_a * gauss(&mut rng);
+        let ia_m = x.ia + d.offset_a[0] + d.noise_a * gauss(&mut rng);
+        let ib_m = x.ib + d.offset_a[1] + d.noise_a * gauss(&mut rng);
         let _ = writeln!(out, "{t:.6},{th_cmd:.12},{ia_m:.6},{ib_m:.6},{:.6},{:.6}", v_now.0, v_now.1);
         if t >= p.standstill_s + p.ramp_s {
             steady += 1;
