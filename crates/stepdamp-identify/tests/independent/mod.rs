@@ -24,8 +24,14 @@
 //! * **Runs**: 50 ms at rest, a 0.1 s ramp, then constant speed.
 //!
 //! The output is a CSV run log with the columns of the repository's log format.
+//!
+//! [`open_loop`] is its counterpart for the sensorless route (issue 16): an open-loop drive
+//! (PWM bridge, PI current loop) that performs the sensorless plan CSV and logs currents and
+//! applied voltages.
 
 #![allow(dead_code)] // each test binary uses a part of it
+
+pub mod open_loop;
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
