@@ -21,9 +21,10 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use std::f64::consts::PI;
 use stepdamp_identify::fit::wrap_pi;
+use stepdamp_identify::plan::RUNS_CSV_HEADER as PLAN_CSV_HEADER;
 use stepdamp_identify::sensorless::flux::FluxOptions;
 use stepdamp_identify::sensorless::log::parse_sensorless_log;
-use stepdamp_identify::sensorless::plan::{PLAN_CSV_HEADER, SensorlessPlanOptions, plan};
+use stepdamp_identify::sensorless::plan::{SensorlessPlanOptions, plan};
 use stepdamp_identify::sensorless::{fit_options, identify};
 use stepdamp_profile::Profile;
 
@@ -41,7 +42,7 @@ fn drive() -> Drive {
         r_nominal: 0.9,
         l_nominal: 2.5e-3,
         noise_a: 0.005,
-        offset_a: [0.0; 2],
+        offset_a: [0.003, -0.002],
         switching: true,
     }
 }
@@ -89,7 +90,7 @@ struct Outcome {
 
 fn check(seed: u64) -> Outcome {
     let (m, base) = motor(seed);
-    let csv = plan(&base, &SensorlessPlanOptions::default()).unwrap().to_csv();
+    let csv = plan(&base, &SensorlessPlanOptions::default()).unwrap().to_csv().unwrap();
     let rows = parse_plan(&csv).unwrap();
     let mut line = format!(
         "motor {seed:2} ({}, J ×{:.2}, Fs {:.1} mN·m, base R ×{:.1}): ",
@@ -146,7 +147,7 @@ fn sensorless_route_identifies_motors_from_an_independent_open_loop_drive_follow
 fn the_plan_csv_has_the_documented_header_and_every_row_parses() {
     let base = Profile::preset("patent-motor").unwrap();
     let p = plan(&base, &SensorlessPlanOptions::default()).unwrap();
-    let csv = p.to_csv();
+    let csv = p.to_csv().unwrap();
     assert_eq!(csv.lines().next(), Some("run,speed_rad_s,duration_s,standstill_s,ramp_s"));
     assert_eq!(PLAN_CSV_HEADER, PLAN_HEADER);
     let rows = parse_plan(&csv).unwrap();

@@ -141,6 +141,10 @@ pub struct Standstill {
     /// mean voltage and current vectors), when it is long enough
     /// ([`FluxOptions::min_standstill_s`]); `R` is their ratio.
     pub sums: Option<(f64, f64)>,
+    /// Mean sampled current vector over the settled part, A (zero without sums).
+    pub mean_current_a: (f64, f64),
+    /// Samples in the settled part (zero without sums).
+    pub settled_samples: usize,
 }
 
 impl Standstill {
@@ -150,7 +154,7 @@ impl Standstill {
         let samples = log.theta_cmd_rad.iter().take_while(|&&c| (c - cmd0).abs() <= 1e-12 * (1.0 + cmd0.abs())).count();
         let duration_s = if samples > 1 { log.t_s[samples - 1] - log.t_s[0] } else { 0.0 };
         if duration_s < o.min_standstill_s {
-            return Ok(Standstill { samples, duration_s, sums: None });
+            return Ok(Standstill { samples, duration_s, sums: None, mean_current_a: (0.0, 0.0), settled_samples: 0 });
         }
         let from = (samples as f64 * o.settle_fraction) as usize;
         // Means first, then the products: the sums of products `Σ v·i`, `Σ i·i` take in the
@@ -166,8 +170,48 @@ impl Standstill {
         if ii <= 1e-6 * (samples - from) as f64 {
             return Err(FluxError::NoStandstillCurrent { log: log.source.clone() });
         }
-        Ok(Standstill { samples, duration_s, sums: Some((vi, ii)) })
+        Ok(Standstill {
+            samples,
+            duration_s,
+            sums: Some((vi, ii)),
+            mean_current_a: (ia / m, ib / m),
+            settled_samples: samples - from,
+        })
     }
+
+    /// The sums with the running mean voltage `v_run` ([`running_mean_voltage`]) taken
+    /// off the standstill's: the sampled currents' offset `ε` makes the standstill read
+    /// `v̄ = R·(ī − ε)` and the running part `v̄_run = −R·ε`, so `R = (v̄ − v̄_run)·ī/|ī|²`
+    /// whatever `ε`.
+    pub fn offset_corrected(&self, v_run: (f64, f64)) -> Standstill {
+        let n = self.settled_samples as f64;
+        let (ia, ib) = self.mean_current_a;
+        Standstill { sums: self.sums.map(|(vi, ii)| (vi - n * (v_run.0 * ia + v_run.1 * ib), ii)), ..*self }
+    }
+}
+
+/// The mean winding voltages over the whole commanded electrical periods that end the log,
+/// within the last half of its moving part (after the `still` standstill samples; the
+/// plan's ramp is over by then), V, and the samples they cover; `None` when that is less
+/// than one period. Over whole periods the commanded current, the back-EMF and `L di/dt`
+/// average to (nearly) zero; what is left is `−R·ε`, `ε` the offset of the sampled currents
+/// (a sensor's offset; the PWM ripple sampled off its mean).
+pub fn running_mean_voltage(log: &SensorlessLog, still: usize, pole_pairs: u16) -> Option<((f64, f64), usize)> {
+    let n = log.len();
+    let end = n.checked_sub(1)?;
+    let half = still + (n.saturating_sub(still)) / 2;
+    let th = &log.theta_cmd_rad;
+    let span = (th[end] - th.get(half)?).abs();
+    let period = TAU / f64::from(pole_pairs);
+    let periods = (span / period).floor();
+    if periods < 1.0 {
+        return None;
+    }
+    let start = (half..end).rev().find(|&k| (th[end] - th[k]).abs() >= periods * period)?;
+    let m = (end - start) as f64;
+    let va = log.v_a_v[start..end].iter().sum::<f64>() / m;
+    let vb = log.v_b_v[start..end].iter().sum::<f64>() / m;
+    Some(((va, vb), end - start))
 }
 
 /// `R` = the ratio of the [`Standstill::sums`] pooled over the standstills that have them (one winding, several

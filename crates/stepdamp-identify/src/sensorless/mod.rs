@@ -77,6 +77,9 @@ pub struct Estimated {
     pub resistance_ohm: f64,
     /// Where it came from.
     pub resistance_source: ResistanceSource,
+    /// The offset of the sampled phase currents `(ε_a, ε_b)` found from the running mean
+    /// voltages ([`flux::running_mean_voltage`]) and taken off every sample, A.
+    pub current_offset_a: (f64, f64),
 }
 
 impl Estimated {
@@ -91,11 +94,25 @@ impl Estimated {
 /// run logs the fit reads.
 pub fn estimate(logs: &[SensorlessLog], w: &Winding, o: &FluxOptions) -> Result<Estimated, FluxError> {
     let still = logs.iter().map(|l| Standstill::of(l, o)).collect::<Result<Vec<_>, _>>()?;
-    let (resistance_ohm, resistance_source) = pooled_resistance(&still, w.resistance_ohm);
+    let running: Vec<_> =
+        logs.iter().zip(&still).map(|(l, s)| flux::running_mean_voltage(l, s.samples, w.pole_pairs)).collect();
+    let corrected: Vec<_> =
+        still.iter().zip(&running).map(|(s, r)| r.map_or(*s, |(v, _)| s.offset_corrected(v))).collect();
+    let (resistance_ohm, resistance_source) = pooled_resistance(&corrected, w.resistance_ohm);
+    // The sampled currents' offset, pooled over the runs: `ε = −v̄_run/R`.
+    let (sa, sb, sn) = running
+        .iter()
+        .flatten()
+        .fold((0.0, 0.0, 0.0), |a, &((va, vb), n)| (a.0 + va * n as f64, a.1 + vb * n as f64, a.2 + n as f64));
+    let current_offset_a = if sn > 0.0 { (-sa / sn / resistance_ohm, -sb / sn / resistance_ohm) } else { (0.0, 0.0) };
     let nr = f64::from(w.pole_pairs);
     let mut out = Vec::with_capacity(logs.len());
     let mut angles = Vec::with_capacity(logs.len());
-    for (log, st) in logs.iter().zip(&still) {
+    for (log, st) in logs.iter().zip(&corrected) {
+        let mut log = log.clone();
+        log.i_a_a.iter_mut().for_each(|i| *i -= current_offset_a.0);
+        log.i_b_a.iter_mut().for_each(|i| *i -= current_offset_a.1);
+        let log = &log;
         let a = rotor_angle(log, w, resistance_ohm, o)?;
         let i_q_a = a
             .theta_e_rad
@@ -123,7 +140,7 @@ pub fn estimate(logs: &[SensorlessLog], w: &Winding, o: &FluxOptions) -> Result<
             ignored_columns: log.ignored_columns.clone(),
         });
     }
-    Ok(Estimated { logs: out, angles, resistance_ohm, resistance_source })
+    Ok(Estimated { logs: out, angles, resistance_ohm, resistance_source, current_offset_a })
 }
 
 /// Why the sensorless route failed.
