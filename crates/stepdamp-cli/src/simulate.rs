@@ -31,13 +31,13 @@ pub struct SimulateArgs {
     pub speed: f64,
     /// Simulated time in s (error measured over the last ≤ 0.5 s, whole electrical periods,
     /// at least 50 ms after the ramp).
-    #[arg(long, default_value_t = 1.5, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = RunSpec::DURATION_S, allow_negative_numbers = true)]
     pub duration: f64,
     /// Standstill time with the holding current on before the ramp, s.
-    #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = RunSpec::DWELL_S, allow_negative_numbers = true)]
     pub dwell: f64,
     /// Ramp time from rest to the speed in s.
-    #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = RunSpec::RAMP_S, allow_negative_numbers = true)]
     pub ramp: f64,
     /// Constant load torque in N·m opposing the direction of travel.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
@@ -86,13 +86,7 @@ pub fn run(a: SimulateArgs, _g: &Global) -> Result<()> {
     {
         bail!("--dwell {} + --ramp {}: must be ≥ 0 and shorter than --duration {}", a.dwell, a.ramp, a.duration);
     }
-    let spec = RunSpec {
-        speed_rad_s: a.speed,
-        dwell_s: a.dwell,
-        ramp_s: a.ramp,
-        duration_s: a.duration,
-        window_s: (a.duration / 3.0).min(0.5),
-    };
+    let spec = RunSpec { dwell_s: a.dwell, ramp_s: a.ramp, ..RunSpec::for_duration(a.speed, a.duration) };
     let pwm = motor.drive.pwm_hz;
     let nr = motor.motor.pole_pairs;
     spec.check(pwm, nr).map_err(|e| match e {

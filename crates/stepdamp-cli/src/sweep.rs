@@ -41,7 +41,7 @@ pub struct SweepArgs {
     pub points: i64,
     /// Simulated time per run in s (50 ms standstill, 0.1 s ramp, error measured over the
     /// last ≤ 0.5 s in whole electrical periods, at least 50 ms after the ramp).
-    #[arg(long, default_value_t = 1.5, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = RunSpec::DURATION_S, allow_negative_numbers = true)]
     pub duration: f64,
     /// Constant load torque in N·m opposing the direction of travel.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
@@ -101,12 +101,11 @@ pub fn spec_of(a: &SweepArgs) -> Result<SweepSpec> {
     if compensations.contains(&Compensation::Estimated) && !modes.contains(&Mode::OpenLoop) {
         bail!("--mode {} --compensation estimated: {ESTIMATED_IS_OPEN_LOOP_ONLY}", a.mode);
     }
-    let window = (a.duration / 3.0).min(0.5);
     Ok(SweepSpec {
         speeds_rad_s: linear_grid(a.from, a.to, a.points as usize),
         modes,
         compensations,
-        run: RunSpec { speed_rad_s: a.from, dwell_s: 0.05, ramp_s: 0.1, duration_s: a.duration, window_s: window },
+        run: RunSpec::for_duration(a.from, a.duration),
         options: SimOptions {
             substeps: a.substeps as u32,
             current_noise_a: a.current_noise,
