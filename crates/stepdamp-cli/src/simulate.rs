@@ -1,12 +1,13 @@
 //! `stepdamp simulate`: one constant-speed run, optionally logged per control period.
 
 use crate::Global;
-use crate::common::{load_motor, parse_compensations, parse_modes};
+use crate::common::{ChoiceList, load_motor, parse_compensations, parse_modes};
 use anyhow::{Context, Result, anyhow, bail};
 use std::path::PathBuf;
+use stepdamp_core::Mode;
 use stepdamp_sim::runlog::{FromRecord, LogRow};
 use stepdamp_sim::{
-    ClosedLoop, ESTIMATED_IS_OPEN_LOOP_ONLY, RunSpec, SimError, SimOptions, check_mode_compensation,
+    ClosedLoop, Compensation, ESTIMATED_IS_OPEN_LOOP_ONLY, RunSpec, SimError, SimOptions, check_mode_compensation,
     check_same_hardware, run as run_spec,
 };
 
@@ -20,12 +21,12 @@ pub struct SimulateArgs {
     #[arg(long, value_name = "PRESET|FILE")]
     pub controller_motor: Option<String>,
     /// open-loop or servo.
-    #[arg(long, default_value = "open-loop")]
-    pub mode: String,
+    #[arg(long, default_value = "open-loop", value_parser = parse_modes)]
+    pub mode: ChoiceList<Mode>,
     /// off, patent (alias on), or estimated (the rotor angle estimated from the currents
     /// and voltages; open loop only).
-    #[arg(long, default_value = "patent")]
-    pub compensation: String,
+    #[arg(long, default_value = "patent", value_parser = parse_compensations)]
+    pub compensation: ChoiceList<Compensation>,
     /// Commanded speed in rad/s (negative runs backwards).
     #[arg(long, allow_negative_numbers = true)]
     pub speed: f64,
@@ -65,9 +66,7 @@ pub fn run(a: SimulateArgs, _g: &Global) -> Result<()> {
         }
         None => motor.clone(),
     };
-    let modes = parse_modes(&a.mode)?;
-    let comps = parse_compensations(&a.compensation)?;
-    let ([mode], [comp]) = (modes.as_slice(), comps.as_slice()) else {
+    let ([mode], [comp]) = (a.mode.items.as_slice(), a.compensation.items.as_slice()) else {
         bail!("simulate runs one mode and one compensation (got --mode {} --compensation {})", a.mode, a.compensation);
     };
     check_mode_compensation(*mode, *comp).map_err(|e| match comp {

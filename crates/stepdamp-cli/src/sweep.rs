@@ -1,7 +1,9 @@
 //! `stepdamp sweep`: velocity error against speed, with and without compensation.
 
 use crate::Global;
-use crate::common::{AtomicFiles, Format, load_motor, parse_compensations, parse_modes, print_json, progress};
+use crate::common::{
+    AtomicFiles, ChoiceList, Format, load_motor, parse_compensations, parse_modes, print_json, progress,
+};
 use crate::plot::{Marker, sweep_plot};
 use anyhow::{Context, Result, anyhow, bail};
 use std::path::PathBuf;
@@ -24,11 +26,11 @@ pub struct SweepArgs {
     #[arg(long, value_name = "PRESET|FILE")]
     pub controller_motor: Option<String>,
     /// open-loop, servo or both.
-    #[arg(long, default_value = "both")]
-    pub mode: String,
+    #[arg(long, default_value = "both", value_parser = parse_modes)]
+    pub mode: ChoiceList<Mode>,
     /// Comma list of off, patent (alias on), estimated (open loop only); both = off,patent.
-    #[arg(long, default_value = "both")]
-    pub compensation: String,
+    #[arg(long, default_value = "both", value_parser = parse_compensations)]
+    pub compensation: ChoiceList<Compensation>,
     /// Lowest speed in rad/s.
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pub from: f64,
@@ -96,8 +98,7 @@ pub fn spec_of(a: &SweepArgs) -> Result<SweepSpec> {
     if !(1..=1000).contains(&a.substeps) {
         bail!("--substeps {}: must be in 1..=1000", a.substeps);
     }
-    let modes = parse_modes(&a.mode)?;
-    let compensations = parse_compensations(&a.compensation)?;
+    let (modes, compensations) = (a.mode.items.clone(), a.compensation.items.clone());
     if compensations.contains(&Compensation::Estimated) && !modes.contains(&Mode::OpenLoop) {
         bail!("--mode {} --compensation estimated: {ESTIMATED_IS_OPEN_LOOP_ONLY}", a.mode);
     }
