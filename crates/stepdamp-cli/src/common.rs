@@ -2,9 +2,11 @@
 //! output, progress bars.
 
 use anyhow::{Context, Result, anyhow};
+use clap::builder::{PossibleValuesParser, TypedValueParser};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
+use std::str::FromStr;
 use stepdamp_core::Mode;
 use stepdamp_sim::{Compensation, Profile};
 
@@ -28,6 +30,18 @@ pub fn print_json(value: &impl serde::Serialize) -> Result<()> {
     let text = serde_json::to_string(value).context("cannot serialise the result")?;
     outln!("{text}");
     Ok(())
+}
+
+/// A clap value parser for a library's named choice (made with
+/// `stepdamp_core::named_choice!`): clap lists the names of `all` as the possible values (in
+/// the help, and in the error with the value as written), and the choice's own `FromStr`
+/// parses them, so the names have one home, the library's table.
+pub fn choice_parser<T>(all: &'static [T], name: fn(T) -> &'static str) -> impl TypedValueParser<Value = T>
+where
+    T: Copy + FromStr + Send + Sync + 'static,
+    T::Err: std::error::Error + Send + Sync + 'static,
+{
+    PossibleValuesParser::new(all.iter().map(|&c| name(c))).try_map(|s| s.parse::<T>())
 }
 
 /// A comma list of choices from the command line (a typed clap value): the choices in the
