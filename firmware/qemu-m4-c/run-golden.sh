@@ -7,18 +7,14 @@
 #
 #   bash firmware/qemu-m4-c/run-golden.sh           # check
 #   bash firmware/qemu-m4-c/run-golden.sh --bless   # rewrite size.txt from this build
-bless=0
-case "${1:-}" in
-    "") ;;
-    --bless) bless=1 ;;
-    *) echo "usage: $0 [--bless]" >&2; exit 2 ;;
-esac
+# shellcheck source=common.sh
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+parse_bless "$@"
+build_c_firmware
 
 # The Rust firmware, built and run the way firmware/qemu-m4/run-golden.sh does.
-rust_dir="$root/firmware/qemu-m4"
-(cd "$rust_dir" && CARGO_TARGET_DIR="$rust_dir/target" cargo build --release --locked)
-rust_elf="$rust_dir/target/thumbv7em-none-eabihf/release/qemu-m4"
+build_rust_firmware
+rust_dir="$repo/firmware/qemu-m4"
 c_elf="$out_dir/qemu-m4-c.elf"
 
 echo "qemu-m4-c: $("$qemu" --version | head -n1); $(arm-none-eabi-gcc --version | head -n1)"
@@ -38,7 +34,7 @@ else
     echo "qemu-m4-c: note: differs from the committed firmware/qemu-m4/golden.txt (its own run-golden.sh reports that)"
 fi
 
-text_bytes="$(arm-none-eabi-size -A "$c_elf" | awk '$1 == ".text" { print $2 }')"
+text_bytes="$(text_bytes "$c_elf")"
 size_file="$here/size.txt"
 if [[ $bless -eq 1 ]]; then
     {
@@ -50,14 +46,5 @@ if [[ $bless -eq 1 ]]; then
     echo "qemu-m4-c: blessed size.txt (.text = $text_bytes bytes)"
     exit "$fail"
 fi
-recorded="$(sed -n 's/^text_bytes=\([0-9][0-9]*\)$/\1/p' "$size_file" 2>/dev/null | head -n1)"
-if [[ -z "$recorded" ]]; then
-    echo "qemu-m4-c: FAIL: no text_bytes=N line in $size_file (measured $text_bytes; --bless records it)" >&2
-    fail=1
-elif (( text_bytes * 10 > recorded * 11 )); then
-    echo "qemu-m4-c: FAIL: .text grew by more than 10 %: $text_bytes bytes, recorded $recorded (--bless if intended)" >&2
-    fail=1
-else
-    echo "qemu-m4-c: ok, .text = $text_bytes bytes, recorded $recorded bytes in size.txt"
-fi
+check_size "$size_file" "$text_bytes" || fail=1
 exit "$fail"

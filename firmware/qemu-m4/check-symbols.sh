@@ -17,7 +17,7 @@ here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 source "$here/tools/common.sh"
 
 need_binutils
-build_firmware
+build_rust_firmware
 dis="$(mktemp)"
 trap 'rm -f "$dis"' EXIT
 disassemble "$dis"

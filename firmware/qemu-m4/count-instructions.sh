@@ -15,32 +15,16 @@
 # written to disk. These are emulator instruction counts, not silicon cycles (the M4F
 # needs ~1–1.5 cycles per instruction on average, more on flash wait states).
 #
-# QEMU as in run-golden.sh ($QEMU_SYSTEM_ARM, PATH, or .ci/cache from .ci/install-qemu.sh);
-# arm-none-eabi-objdump from Debian's binutils-arm-none-eabi (installed when missing).
+# QEMU and the build as in run-golden.sh (firmware/qemu-lib.sh: $QEMU_SYSTEM_ARM, PATH, or
+# .ci/cache from .ci/install-qemu.sh); arm-none-eabi-objdump from Debian's
+# binutils-arm-none-eabi (installed when missing).
 set -euo pipefail
 
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
-root="$(cd "$here/../.." && pwd)"
 # shellcheck source=tools/common.sh
 source "$here/tools/common.sh"
-bless=0
-case "${1:-}" in
-    "") ;;
-    --bless) bless=1 ;;
-    *) echo "usage: $0 [--bless]" >&2; exit 2 ;;
-esac
-
-qemu="${QEMU_SYSTEM_ARM:-}"
-if [[ -z "$qemu" ]]; then
-    if command -v qemu-system-arm >/dev/null 2>&1; then
-        qemu="$(command -v qemu-system-arm)"
-    elif [[ -x "$root/.ci/cache/qemu/usr/bin/qemu-system-arm" ]]; then
-        qemu="$root/.ci/cache/qemu/usr/bin/qemu-system-arm"
-    else
-        echo "count-instructions: qemu-system-arm not found; run: bash .ci/install-qemu.sh" >&2
-        exit 1
-    fi
-fi
+parse_bless "$@"
+need_qemu
 # One instruction per translation block: `-singlestep` until QEMU 8.0, then
 # `-accel tcg,one-insn-per-tb=on` (the old flag is deprecated from 8.1).
 if "$qemu" -help | grep -q -- '^-singlestep'; then
@@ -50,7 +34,7 @@ else
 fi
 
 need_binutils
-build_firmware
+build_rust_firmware
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 disassemble "$work/dis.txt"
@@ -76,7 +60,7 @@ periods="$(sed -n 's/^const PERIODS: u32 = \([0-9_]*\);.*/\1/p' "$here/src/main.
 echo "count-instructions: $("$qemu" --version | head -n1), ${one_insn[*]}"
 status=0
 timeout 900 "$qemu" -cpu cortex-m4 -machine mps2-an386 -nographic \
-    -semihosting-config enable=on,target=native -kernel "$elf" \
+    -semihosting-config enable=on,target=native -kernel "$rust_elf" \
     "${one_insn[@]}" -d exec,nochain -dfilter "$filter" </dev/null 2>&1 >"$work/stdout" \
     | python3 "$here/tools/count_steps.py" "$work/ranges.txt" "$STEP_ROOT" "$returns" >"$work/counts.txt" \
     || status=$?

@@ -48,8 +48,8 @@ fn column<'py>(py: Python<'py>, d: &Bound<'py, PyDict>, name: &str, v: Vec<f64>)
 /// One constant-speed run (the CLI's `simulate`). Returns `(log, metrics)`: the run-log
 /// columns as numpy arrays (one row per control period) and the velocity-error metrics.
 #[pyfunction]
-#[pyo3(signature = (profile, mode = "open-loop", compensation = "patent", speed_rad_s = 10.0, duration_s = 1.5, *,
-    controller = None, dwell_s = 0.05, ramp_s = 0.1, load_torque_nm = 0.0, current_noise_a = 0.0, substeps = None, seed = 1))]
+#[pyo3(signature = (profile, mode = "open-loop", compensation = "patent", speed_rad_s = 10.0,
+    duration_s = RunSpec::DURATION_S, *, controller = None, dwell_s = RunSpec::DWELL_S, ramp_s = RunSpec::RAMP_S, load_torque_nm = 0.0, current_noise_a = 0.0, substeps = None, seed = 1))]
 #[allow(clippy::too_many_arguments)]
 pub fn simulate<'py>(
     py: Python<'py>,
@@ -70,7 +70,7 @@ pub fn simulate<'py>(
     let ctrl = controller_of(&motor, controller.as_deref())?;
     let (mode, comp) = (self::mode(mode)?, self::compensation(compensation)?);
     check_mode_compensation(mode, comp).map_err(err)?;
-    let spec = RunSpec { speed_rad_s, dwell_s, ramp_s, duration_s, window_s: (duration_s / 3.0).min(0.5) };
+    let spec = RunSpec { dwell_s, ramp_s, ..RunSpec::for_duration(speed_rad_s, duration_s) };
     let pwm = motor.drive.pwm_hz;
     let nr = motor.motor.pole_pairs;
     spec.check(pwm, nr).map_err(err)?;
@@ -137,7 +137,7 @@ pub fn linear_grid(from_rad_s: f64, to_rad_s: f64, points: usize) -> Vec<f64> {
 /// `(table, summary_json, summary_text)`: the sweep table's columns (design.md §6) and the
 /// library's `SweepSummary` as JSON (the CLI's `--format json`) and as the CLI's text.
 #[pyfunction]
-#[pyo3(signature = (profile, modes, compensations, speeds_rad_s, *, controller = None, duration_s = 1.5,
+#[pyo3(signature = (profile, modes, compensations, speeds_rad_s, *, controller = None, duration_s = RunSpec::DURATION_S,
     load_torque_nm = 0.0, current_noise_a = 0.0, substeps = None, seed = 1))]
 #[allow(clippy::too_many_arguments)]
 pub fn sweep<'py>(
@@ -159,13 +159,7 @@ pub fn sweep<'py>(
         speeds_rad_s,
         modes: modes.iter().map(|m| mode(m)).collect::<PyResult<_>>()?,
         compensations: compensations.iter().map(|c| compensation(c)).collect::<PyResult<_>>()?,
-        run: RunSpec {
-            speed_rad_s: 1.0,
-            dwell_s: 0.05,
-            ramp_s: 0.1,
-            duration_s,
-            window_s: (duration_s / 3.0).min(0.5),
-        },
+        run: RunSpec::for_duration(1.0, duration_s),
         options: options(substeps, current_noise_a, seed, load_torque_nm),
     };
     let rows = py.allow_threads(|| stepdamp_sim::sweep(&motor, &ctrl, &spec, &|| {})).map_err(err)?;

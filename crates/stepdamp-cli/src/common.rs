@@ -2,9 +2,11 @@
 //! output, progress bars.
 
 use anyhow::{Context, Result, anyhow};
+use clap::builder::{PossibleValuesParser, TypedValueParser};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
+use std::str::FromStr;
 use stepdamp_core::Mode;
 use stepdamp_sim::{Compensation, Profile};
 
@@ -30,9 +32,38 @@ pub fn print_json(value: &impl serde::Serialize) -> Result<()> {
     Ok(())
 }
 
-/// Parses a comma list of modes: the core's names (`open-loop`, `servo`; [`Mode::name`]),
-/// the aliases `openloop` and `ol`, and `both`.
-pub fn parse_modes(s: &str) -> Result<Vec<Mode>> {
+/// A clap value parser for a library's named choice (made with
+/// `stepdamp_core::named_choice!`): clap lists the names of `all` as the possible values (in
+/// the help, and in the error with the value as written), and the choice's own `FromStr`
+/// parses them, so the names have one home, the library's table.
+pub fn choice_parser<T>(all: &'static [T], name: fn(T) -> &'static str) -> impl TypedValueParser<Value = T>
+where
+    T: Copy + FromStr + Send + Sync + 'static,
+    T::Err: std::error::Error + Send + Sync + 'static,
+{
+    PossibleValuesParser::new(all.iter().map(|&c| name(c))).try_map(|s| s.parse::<T>())
+}
+
+/// A comma list of choices from the command line (a typed clap value): the choices in the
+/// order given, without repeats, and the text as written (for messages).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ChoiceList<T> {
+    /// The choices, aliases expanded.
+    pub items: Vec<T>,
+    /// The option's value as written.
+    pub written: String,
+}
+
+impl<T> std::fmt::Display for ChoiceList<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.written)
+    }
+}
+
+/// `--mode`: a comma list of the core's names (`open-loop`, `servo`; [`Mode::name`]), the
+/// aliases `openloop` and `ol`, and `both`. The error names the entry as written and the
+/// names allowed.
+pub fn parse_modes(s: &str) -> Result<ChoiceList<Mode>, String> {
     let mut out = Vec::new();
     for part in s.split(',').map(str::trim) {
         match part {
@@ -40,16 +71,17 @@ pub fn parse_modes(s: &str) -> Result<Vec<Mode>> {
             "openloop" | "ol" => push_unique(&mut out, Mode::OpenLoop),
             name => push_unique(
                 &mut out,
-                name.parse().map_err(|e| anyhow!("--mode '{part}': {e} or both (a comma list is allowed)"))?,
+                name.parse().map_err(|e| format!("'{part}': {e} or both (a comma list is allowed)"))?,
             ),
         }
     }
-    Ok(out)
+    Ok(ChoiceList { items: out, written: s.to_string() })
 }
 
-/// Parses a comma list of compensations: the core's names (`off`, `patent`, `estimated`,
-/// `angle`, `table`; [`Compensation::name`]), the alias `on` (= `patent`), and `both` (= `off,patent`).
-pub fn parse_compensations(s: &str) -> Result<Vec<Compensation>> {
+/// `--compensation`: a comma list of the core's names (`off`, `patent`, `estimated`,
+/// `angle`, `table`; [`Compensation::name`]), the alias `on` (= `patent`), and `both` (=
+/// `off,patent`). The error names the entry as written and the names allowed.
+pub fn parse_compensations(s: &str) -> Result<ChoiceList<Compensation>, String> {
     let mut out = Vec::new();
     for part in s.split(',').map(str::trim) {
         match part {
@@ -61,12 +93,12 @@ pub fn parse_compensations(s: &str) -> Result<Vec<Compensation>> {
             name => push_unique(
                 &mut out,
                 name.parse().map_err(|e| {
-                    anyhow!("--compensation '{part}': {e} (or on = patent, both = off,patent); a comma list is allowed")
+                    format!("'{part}': {e} (or on = patent, both = off,patent); a comma list is allowed")
                 })?,
             ),
         }
     }
-    Ok(out)
+    Ok(ChoiceList { items: out, written: s.to_string() })
 }
 
 fn push_unique<T: PartialEq>(v: &mut Vec<T>, x: T) {
@@ -160,20 +192,23 @@ mod tests {
 
     #[test]
     fn compensation_lists_accept_aliases_and_reject_nonsense() {
-        assert_eq!(parse_compensations("both").unwrap(), vec![Compensation::Off, Compensation::Patent]);
-        assert_eq!(parse_compensations("on").unwrap(), vec![Compensation::Patent]);
-        assert_eq!(parse_compensations("off, patent,on").unwrap(), vec![Compensation::Off, Compensation::Patent]);
-        let e = parse_compensations("maybe").unwrap_err().to_string();
-        assert!(e.contains("maybe"), "{e}");
-        assert_eq!(parse_modes("both").unwrap(), vec![Mode::OpenLoop, Mode::Servo]);
-        let e = parse_modes("closed").unwrap_err().to_string();
+        let comps = |s| parse_compensations(s).map(|l| l.items);
+        let modes = |s| parse_modes(s).map(|l| l.items);
+        assert_eq!(comps("both").unwrap(), vec![Compensation::Off, Compensation::Patent]);
+        assert_eq!(comps("on").unwrap(), vec![Compensation::Patent]);
+        assert_eq!(comps("off, patent,on").unwrap(), vec![Compensation::Off, Compensation::Patent]);
+        assert_eq!(parse_compensations("off, patent,on").unwrap().to_string(), "off, patent,on");
+        let e = comps("off,maybe").unwrap_err();
+        assert!(e.contains("'maybe'") && e.contains("expected off, patent, estimated, angle, table"), "{e}");
+        assert_eq!(modes("both").unwrap(), vec![Mode::OpenLoop, Mode::Servo]);
+        let e = modes("closed").unwrap_err();
         assert!(e.contains("'closed'") && e.contains("expected open-loop, servo or both"), "{e}");
         // The core's names are the CLI's.
         for &m in Mode::ALL {
-            assert_eq!(parse_modes(m.name()).unwrap(), vec![m]);
+            assert_eq!(modes(m.name()).unwrap(), vec![m]);
         }
         for &c in Compensation::ALL {
-            assert_eq!(parse_compensations(c.name()).unwrap(), vec![c]);
+            assert_eq!(comps(c.name()).unwrap(), vec![c]);
         }
     }
 

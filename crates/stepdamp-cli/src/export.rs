@@ -22,6 +22,14 @@ pub enum Format {
     CHeader,
 }
 
+/// Source format of `stepdamp import`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ImportFormat {
+    /// Prusa-Firmware-Buddy phase stepping: M972 output, M973 lines or a 168-byte
+    /// correction file.
+    Prusa,
+}
+
 /// Arguments of `stepdamp export`.
 #[derive(clap::Args, Debug)]
 pub struct ExportArgs {
@@ -49,8 +57,8 @@ pub struct ExportArgs {
 #[derive(clap::Args, Debug)]
 pub struct ImportArgs {
     /// Source format (only `prusa`).
-    #[arg(value_parser = ["prusa"])]
-    pub format: String,
+    #[arg(value_enum)]
+    pub format: ImportFormat,
     /// M972 output, M973 lines, or a 168-byte correction file.
     #[arg(long)]
     pub m972: PathBuf,

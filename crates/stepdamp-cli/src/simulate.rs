@@ -1,12 +1,13 @@
 //! `stepdamp simulate`: one constant-speed run, optionally logged per control period.
 
 use crate::Global;
-use crate::common::{load_motor, parse_compensations, parse_modes};
+use crate::common::{ChoiceList, load_motor, parse_compensations, parse_modes};
 use anyhow::{Context, Result, anyhow, bail};
 use std::path::PathBuf;
+use stepdamp_core::Mode;
 use stepdamp_sim::runlog::{FromRecord, LogRow};
 use stepdamp_sim::{
-    ClosedLoop, ESTIMATED_IS_OPEN_LOOP_ONLY, RunSpec, SimError, SimOptions, check_mode_compensation,
+    ClosedLoop, Compensation, ESTIMATED_IS_OPEN_LOOP_ONLY, RunSpec, SimError, SimOptions, check_mode_compensation,
     check_same_hardware, run as run_spec,
 };
 
@@ -20,24 +21,24 @@ pub struct SimulateArgs {
     #[arg(long, value_name = "PRESET|FILE")]
     pub controller_motor: Option<String>,
     /// open-loop or servo.
-    #[arg(long, default_value = "open-loop")]
-    pub mode: String,
+    #[arg(long, default_value = "open-loop", value_parser = parse_modes)]
+    pub mode: ChoiceList<Mode>,
     /// off, patent (alias on), or estimated (the rotor angle estimated from the currents
     /// and voltages; open loop only).
-    #[arg(long, default_value = "patent")]
-    pub compensation: String,
+    #[arg(long, default_value = "patent", value_parser = parse_compensations)]
+    pub compensation: ChoiceList<Compensation>,
     /// Commanded speed in rad/s (negative runs backwards).
     #[arg(long, allow_negative_numbers = true)]
     pub speed: f64,
     /// Simulated time in s (error measured over the last ≤ 0.5 s, whole electrical periods,
     /// at least 50 ms after the ramp).
-    #[arg(long, default_value_t = 1.5, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = RunSpec::DURATION_S, allow_negative_numbers = true)]
     pub duration: f64,
     /// Standstill time with the holding current on before the ramp, s.
-    #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = RunSpec::DWELL_S, allow_negative_numbers = true)]
     pub dwell: f64,
     /// Ramp time from rest to the speed in s.
-    #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = RunSpec::RAMP_S, allow_negative_numbers = true)]
     pub ramp: f64,
     /// Constant load torque in N·m opposing the direction of travel.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
@@ -65,9 +66,7 @@ pub fn run(a: SimulateArgs, _g: &Global) -> Result<()> {
         }
         None => motor.clone(),
     };
-    let modes = parse_modes(&a.mode)?;
-    let comps = parse_compensations(&a.compensation)?;
-    let ([mode], [comp]) = (modes.as_slice(), comps.as_slice()) else {
+    let ([mode], [comp]) = (a.mode.items.as_slice(), a.compensation.items.as_slice()) else {
         bail!("simulate runs one mode and one compensation (got --mode {} --compensation {})", a.mode, a.compensation);
     };
     check_mode_compensation(*mode, *comp).map_err(|e| match comp {
@@ -86,13 +85,7 @@ pub fn run(a: SimulateArgs, _g: &Global) -> Result<()> {
     {
         bail!("--dwell {} + --ramp {}: must be ≥ 0 and shorter than --duration {}", a.dwell, a.ramp, a.duration);
     }
-    let spec = RunSpec {
-        speed_rad_s: a.speed,
-        dwell_s: a.dwell,
-        ramp_s: a.ramp,
-        duration_s: a.duration,
-        window_s: (a.duration / 3.0).min(0.5),
-    };
+    let spec = RunSpec { dwell_s: a.dwell, ramp_s: a.ramp, ..RunSpec::for_duration(a.speed, a.duration) };
     let pwm = motor.drive.pwm_hz;
     let nr = motor.motor.pole_pairs;
     spec.check(pwm, nr).map_err(|e| match e {

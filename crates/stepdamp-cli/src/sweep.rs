@@ -1,7 +1,9 @@
 //! `stepdamp sweep`: velocity error against speed, with and without compensation.
 
 use crate::Global;
-use crate::common::{AtomicFiles, Format, load_motor, parse_compensations, parse_modes, print_json, progress};
+use crate::common::{
+    AtomicFiles, ChoiceList, Format, load_motor, parse_compensations, parse_modes, print_json, progress,
+};
 use crate::plot::{Marker, sweep_plot};
 use anyhow::{Context, Result, anyhow, bail};
 use std::path::PathBuf;
@@ -24,11 +26,11 @@ pub struct SweepArgs {
     #[arg(long, value_name = "PRESET|FILE")]
     pub controller_motor: Option<String>,
     /// open-loop, servo or both.
-    #[arg(long, default_value = "both")]
-    pub mode: String,
+    #[arg(long, default_value = "both", value_parser = parse_modes)]
+    pub mode: ChoiceList<Mode>,
     /// Comma list of off, patent (alias on), estimated (open loop only); both = off,patent.
-    #[arg(long, default_value = "both")]
-    pub compensation: String,
+    #[arg(long, default_value = "both", value_parser = parse_compensations)]
+    pub compensation: ChoiceList<Compensation>,
     /// Lowest speed in rad/s.
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pub from: f64,
@@ -41,7 +43,7 @@ pub struct SweepArgs {
     pub points: i64,
     /// Simulated time per run in s (50 ms standstill, 0.1 s ramp, error measured over the
     /// last ≤ 0.5 s in whole electrical periods, at least 50 ms after the ramp).
-    #[arg(long, default_value_t = 1.5, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = RunSpec::DURATION_S, allow_negative_numbers = true)]
     pub duration: f64,
     /// Constant load torque in N·m opposing the direction of travel.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
@@ -96,17 +98,15 @@ pub fn spec_of(a: &SweepArgs) -> Result<SweepSpec> {
     if !(1..=1000).contains(&a.substeps) {
         bail!("--substeps {}: must be in 1..=1000", a.substeps);
     }
-    let modes = parse_modes(&a.mode)?;
-    let compensations = parse_compensations(&a.compensation)?;
+    let (modes, compensations) = (a.mode.items.clone(), a.compensation.items.clone());
     if compensations.contains(&Compensation::Estimated) && !modes.contains(&Mode::OpenLoop) {
         bail!("--mode {} --compensation estimated: {ESTIMATED_IS_OPEN_LOOP_ONLY}", a.mode);
     }
-    let window = (a.duration / 3.0).min(0.5);
     Ok(SweepSpec {
         speeds_rad_s: linear_grid(a.from, a.to, a.points as usize),
         modes,
         compensations,
-        run: RunSpec { speed_rad_s: a.from, dwell_s: 0.05, ramp_s: 0.1, duration_s: a.duration, window_s: window },
+        run: RunSpec::for_duration(a.from, a.duration),
         options: SimOptions {
             substeps: a.substeps as u32,
             current_noise_a: a.current_noise,

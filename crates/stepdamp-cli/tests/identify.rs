@@ -49,7 +49,7 @@ fn the_fit_prints_its_decisions_then_the_library_validation_and_honours_inertia(
     let dir = tempfile::tempdir().unwrap();
     let (csv, base) = logs(dir.path());
     assert!(csv.len() >= 2, "{csv:?}");
-    for mode in InertiaMode::ALL {
+    for &mode in InertiaMode::ALL {
         let mut args = vec!["identify".to_string()];
         for c in &csv {
             args.extend(["--log".to_string(), c.display().to_string()]);

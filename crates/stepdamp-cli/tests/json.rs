@@ -65,7 +65,7 @@ fn sweep_json_is_the_library_sweep_summary() {
         speeds_rad_s: linear_grid(4.0, 9.0, 3),
         modes: vec![Mode::OpenLoop],
         compensations: vec![Compensation::Off, Compensation::Patent],
-        run: RunSpec { speed_rad_s: 4.0, dwell_s: 0.05, ramp_s: 0.1, duration_s: 0.3, window_s: 0.1 },
+        run: RunSpec::for_duration(4.0, 0.3),
         options: SimOptions::default(),
     };
     let rows = sweep(&motor, &motor, &spec, &|| {}).unwrap();

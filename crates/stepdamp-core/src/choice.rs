@@ -19,7 +19,14 @@ impl core::fmt::Display for UnknownName {
 
 impl core::error::Error for UnknownName {}
 
-/// Names, `FromStr` and `Display` of a choice, from one table.
+/// Names, `FromStr` and `Display` of a choice, from one table: for a fieldless enum of the
+/// calling crate,
+/// `named_choice!(Effort, "effort", "measured, command", [MeasuredIq => "measured", CommandIq => "command"])`
+/// defines `Effort::ALL` (every choice, in table order), `Effort::name`, `FromStr` (the
+/// names only; the error is an [`UnknownName`] with the what and the expected list given
+/// here) and `Display` (the name). The library crates name their option sets with it, so
+/// that a front end lists and parses a choice from its own table.
+#[macro_export]
 macro_rules! named_choice {
     ($ty:ident, $what:literal, $expected:literal, [$($v:ident => $n:literal),+ $(,)?]) => {
         impl $ty {
@@ -51,5 +58,3 @@ macro_rules! named_choice {
         }
     };
 }
-
-pub(crate) use named_choice;

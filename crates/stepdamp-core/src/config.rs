@@ -128,8 +128,8 @@ pub enum Compensation {
     Table,
 }
 
-crate::choice::named_choice!(Mode, "mode", "open-loop, servo", [OpenLoop => "open-loop", Servo => "servo"]);
-crate::choice::named_choice!(Compensation, "compensation", "off, patent, estimated, angle, table", [
+crate::named_choice!(Mode, "mode", "open-loop, servo", [OpenLoop => "open-loop", Servo => "servo"]);
+crate::named_choice!(Compensation, "compensation", "off, patent, estimated, angle, table", [
     Off => "off",
     Patent => "patent",
     Estimated => "estimated",

@@ -50,29 +50,11 @@ pub enum InertiaMode {
     Auto,
 }
 
-impl InertiaMode {
-    /// Every mode, in the order of the option's help.
-    pub const ALL: [InertiaMode; 3] = [InertiaMode::Fit, InertiaMode::Base, InertiaMode::Auto];
-
-    /// The option value: `fit`, `base`, `auto`.
-    pub fn name(self) -> &'static str {
-        match self {
-            InertiaMode::Fit => "fit",
-            InertiaMode::Base => "base",
-            InertiaMode::Auto => "auto",
-        }
-    }
-}
-
-impl std::str::FromStr for InertiaMode {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        InertiaMode::ALL
-            .into_iter()
-            .find(|m| m.name() == s)
-            .ok_or_else(|| format!("inertia mode {s:?}: must be one of fit, base, auto"))
-    }
-}
+stepdamp_core::named_choice!(InertiaMode, "inertia mode", "fit, base, auto", [
+    Fit => "fit",
+    Base => "base",
+    Auto => "auto",
+]);
 
 /// The speed level of each run: runs sorted by `|ω̄|`, a new level starting where a speed
 /// is at least [`SPEED_RATIO`] times the slowest of the current level. Level 0 is the
@@ -317,9 +299,9 @@ mod tests {
 
     #[test]
     fn inertia_modes_parse_from_their_names_only() {
-        for m in InertiaMode::ALL {
+        for &m in InertiaMode::ALL {
             assert_eq!(m.name().parse::<InertiaMode>(), Ok(m));
         }
-        assert!("Auto".parse::<InertiaMode>().unwrap_err().contains("fit, base, auto"));
+        assert!("Auto".parse::<InertiaMode>().unwrap_err().to_string().contains("fit, base, auto"));
     }
 }

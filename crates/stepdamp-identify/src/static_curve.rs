@@ -53,6 +53,11 @@ pub enum TorqueSign {
     Holding,
 }
 
+stepdamp_core::named_choice!(TorqueSign, "torque sign", "on-rotor, holding", [
+    OnRotor => "on-rotor",
+    Holding => "holding",
+]);
+
 /// A harmonic from the table.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct StaticHarmonic {

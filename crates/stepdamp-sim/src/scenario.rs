@@ -41,10 +41,43 @@ pub struct RunSpec {
 }
 
 impl RunSpec {
-    /// The default sweep run: 50 ms at standstill, 0.1 s ramp, 1.5 s in all, measured
-    /// over the last ≤ 0.5 s.
+    /// Standstill time of the default run shape, s: 50 ms energised at rest before the ramp,
+    /// as a drive is enabled before it moves; the estimated-angle observer trims its
+    /// resistance estimate there (README, "Resistance trim").
+    pub const DWELL_S: f64 = 0.05;
+    /// Ramp time of the default run shape, s: rest to the target speed in 0.1 s, short
+    /// against the run, so that most of it is spent at the target speed.
+    pub const RAMP_S: f64 = 0.1;
+    /// Total time of the default run, s: the README sweep's 1.5 s runs.
+    pub const DURATION_S: f64 = 1.5;
+    /// Longest measurement window of the default run shape, s: the last 0.5 s of a 1.5 s
+    /// run; a shorter run is measured over its last third ([`RunSpec::window_for`]).
+    pub const WINDOW_MAX_S: f64 = 0.5;
+
+    /// The default sweep run: [`RunSpec::for_duration`] of [`RunSpec::DURATION_S`] (50 ms
+    /// at standstill, 0.1 s ramp, 1.5 s in all, measured over the last ≤ 0.5 s).
     pub fn at(speed_rad_s: f64) -> Self {
-        RunSpec { speed_rad_s, dwell_s: 0.05, ramp_s: 0.1, duration_s: 1.5, window_s: 0.5 }
+        Self::for_duration(speed_rad_s, Self::DURATION_S)
+    }
+
+    /// The run shape of the CLI's `sweep` and `simulate`, the study and the Python binding
+    /// for a run of `duration_s` s at `speed_rad_s` rad/s: [`RunSpec::DWELL_S`] at
+    /// standstill, a [`RunSpec::RAMP_S`] ramp, measured over [`RunSpec::window_for`]
+    /// `duration_s`.
+    pub fn for_duration(speed_rad_s: f64, duration_s: f64) -> Self {
+        RunSpec {
+            speed_rad_s,
+            dwell_s: Self::DWELL_S,
+            ramp_s: Self::RAMP_S,
+            duration_s,
+            window_s: Self::window_for(duration_s),
+        }
+    }
+
+    /// Measurement window of the default run shape for a run of `duration_s` s: its last
+    /// third, at most [`RunSpec::WINDOW_MAX_S`].
+    pub fn window_for(duration_s: f64) -> f64 {
+        (duration_s / 3.0).min(Self::WINDOW_MAX_S)
     }
 
     /// Commanded speed at time `t` s.
@@ -219,6 +252,17 @@ mod tests {
         RunSpec::at(-max_speed_rad_s(pwm, nr)).check(pwm, nr).unwrap();
         RunSpec::at(628.0).check(pwm, nr).unwrap();
         RunSpec::at(1.0).check(pwm, nr).unwrap();
+    }
+
+    #[test]
+    fn the_default_run_shape_measures_the_last_third_of_a_short_run_and_the_last_half_second_of_a_long_one() {
+        assert_eq!(RunSpec::at(3.0), RunSpec::for_duration(3.0, RunSpec::DURATION_S));
+        assert_eq!(RunSpec::at(3.0).window_s, 0.5);
+        let short = RunSpec::for_duration(-2.0, 0.6);
+        assert_eq!((short.speed_rad_s, short.dwell_s, short.ramp_s, short.duration_s), (-2.0, 0.05, 0.1, 0.6));
+        assert!((short.window_s - 0.2).abs() < 1e-15);
+        assert_eq!(RunSpec::for_duration(1.0, 30.0).window_s, RunSpec::WINDOW_MAX_S);
+        assert_eq!(RunSpec::window_for(1.5), RunSpec::WINDOW_MAX_S);
     }
 
     #[test]

@@ -116,16 +116,15 @@ impl Study {
         out
     }
 
-    /// The sweep a variant runs (the CLI's run shape: 50 ms standstill, 0.1 s ramp,
-    /// window min(duration/3, 0.5 s)); its noise seed derives from the variant's.
+    /// The sweep a variant runs (the CLI's run shape, [`RunSpec::for_duration`]); its noise
+    /// seed derives from the variant's.
     pub fn sweep_spec(&self, v: &Variant) -> SweepSpec {
         let s = &self.spec.sweep;
-        let d = s.duration_s;
         SweepSpec {
             speeds_rad_s: self.speeds(v),
             modes: self.modes(),
             compensations: self.compensations(),
-            run: RunSpec { speed_rad_s: 1.0, dwell_s: 0.05, ramp_s: 0.1, duration_s: d, window_s: (d / 3.0).min(0.5) },
+            run: RunSpec::for_duration(1.0, s.duration_s),
             options: SimOptions {
                 substeps: s.substeps,
                 current_noise_a: s.current_noise_a,

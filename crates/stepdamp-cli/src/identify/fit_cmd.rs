@@ -9,15 +9,10 @@ pub(super) fn run_fit_cmd(a: FitArgs, _global: &Global) -> Result<()> {
         bail!("no --log given: pass the servo-mode run logs (CSV), e.g. --log a.csv --log b.csv");
     }
     let base = load_motor(motor)?;
-    let orders = parse_orders(&a.orders)?;
+    let orders = a.orders.0.clone();
     if a.sensorless || route_of(&a.logs)? == stepdamp_identify::sensorless::log::LogKind::Sensorless {
         return run_sensorless_fit_cmd(&a, &base, &orders, out);
     }
-    let effort = match a.effort.as_str() {
-        "measured" => Effort::MeasuredIq,
-        "command" => Effort::CommandIq,
-        e => bail!("--effort '{e}': expected measured or command"),
-    };
     if let Some(bw) = a.servo_bandwidth
         && !(bw.is_finite() && bw > 0.0)
     {
@@ -36,7 +31,7 @@ pub(super) fn run_fit_cmd(a: FitArgs, _global: &Global) -> Result<()> {
         }
     }
     let mut fo = FitOptions::for_profile(&base, &orders);
-    fo.effort = effort;
+    fo.effort = a.effort;
     fo.inertia = a.inertia;
     if let Some(bw) = a.servo_bandwidth {
         fo.servo_bandwidth_hz = Some(bw);

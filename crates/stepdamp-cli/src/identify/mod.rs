@@ -9,7 +9,7 @@
 //! ```
 
 use crate::Global;
-use crate::common::{AtomicFiles, Format, load_motor, print_json, progress, write_atomic};
+use crate::common::{AtomicFiles, Format, choice_parser, load_motor, print_json, progress, write_atomic};
 use anyhow::{Result, anyhow, bail};
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -77,14 +77,14 @@ struct FitArgs {
     #[arg(long, value_name = "FILE")]
     out: Option<PathBuf>,
     /// Harmonic orders to identify (comma list).
-    #[arg(long, default_value = "1,2,4")]
-    orders: String,
+    #[arg(long, default_value = "1,2,4", value_parser = parse_orders)]
+    orders: Orders,
     /// Directory for the report: effort-ripple spectrum and residual plots (SVG + PNG).
     #[arg(long, value_name = "DIR")]
     report: Option<PathBuf>,
     /// The effort signal: measured (i_q_a) or command (iq_cmd_a).
-    #[arg(long, default_value = "measured")]
-    effort: String,
+    #[arg(long, default_value = "measured", value_parser = choice_parser(Effort::ALL, Effort::name))]
+    effort: Effort,
     /// The logs were recorded with the --motor profile's detent and Fs fed forward: print
     /// the remaining ripple (the patent's refinement criterion). J is then held at the
     /// --motor profile's (fitted otherwise).
@@ -97,7 +97,7 @@ struct FitArgs {
     /// How J is obtained: fit (always fitted), base (the --motor profile's) or auto
     /// (fitted when the logs separate it — two speeds in both directions — and its 95 %
     /// interval is narrow, else the base profile's). The decision is printed.
-    #[arg(long, default_value = "auto", value_parser = inertia_parser())]
+    #[arg(long, default_value = "auto", value_parser = choice_parser(InertiaMode::ALL, InertiaMode::name))]
     inertia: InertiaMode,
     /// text, or json: the fit's report (stepdamp_identify::fit::FitReport) as one line of
     /// JSON on stdout, nothing else (the files are written the same).
@@ -119,8 +119,8 @@ struct PlanArgs {
     #[arg(long, value_name = "PRESET|FILE")]
     motor: String,
     /// Harmonic orders to identify.
-    #[arg(long, default_value = "1,2,4")]
-    orders: String,
+    #[arg(long, default_value = "1,2,4", value_parser = parse_orders)]
+    orders: Orders,
     /// Electrical periods of steady running per run.
     #[arg(long, default_value_t = 40.0, allow_negative_numbers = true)]
     periods: f64,
@@ -167,8 +167,8 @@ struct RunArgs {
     #[arg(long)]
     report: bool,
     /// Harmonic orders to identify.
-    #[arg(long, default_value = "1,2,4")]
-    orders: String,
+    #[arg(long, default_value = "1,2,4", value_parser = parse_orders)]
+    orders: Orders,
     /// Electrical periods of steady running per run.
     #[arg(long, default_value_t = 40.0, allow_negative_numbers = true)]
     periods: f64,
@@ -201,8 +201,8 @@ struct StaticArgs {
     table: PathBuf,
     /// What the table holds: on-rotor (the detent torque on the rotor, −Σ A sin) or holding
     /// (the torque applied to hold the rotor, +Σ A sin).
-    #[arg(long)]
-    sign: String,
+    #[arg(long, value_parser = choice_parser(TorqueSign::ALL, TorqueSign::name))]
+    sign: TorqueSign,
     /// Base motor profile (preset or TOML).
     #[arg(long, value_name = "PRESET|FILE")]
     motor: String,
@@ -210,8 +210,8 @@ struct StaticArgs {
     #[arg(long, value_name = "FILE")]
     out: PathBuf,
     /// Harmonic orders to keep.
-    #[arg(long, default_value = "1,2,4")]
-    orders: String,
+    #[arg(long, default_value = "1,2,4", value_parser = parse_orders)]
+    orders: Orders,
     /// Name of the new profile (default: base name + "-static").
     #[arg(long)]
     name: Option<String>,
@@ -231,33 +231,28 @@ pub fn run(args: IdentifyArgs, global: &Global) -> Result<()> {
     }
 }
 
-/// `--inertia`: the names of [`InertiaMode`], parsed by its `FromStr` (one home for them).
-fn inertia_parser() -> impl clap::builder::TypedValueParser<Value = InertiaMode> {
-    use clap::builder::TypedValueParser as _;
-    clap::builder::PossibleValuesParser::new(InertiaMode::ALL.map(InertiaMode::name))
-        .try_map(|s| s.parse::<InertiaMode>())
-}
+/// `--orders`: harmonic orders, distinct, each in 1..=[`stepdamp_core::MAX_HARMONIC_ORDER`]
+/// (a typed clap value: clap names the option and the value as written).
+#[derive(Clone, Debug, PartialEq)]
+struct Orders(Vec<u16>);
 
 /// Parses a comma list of harmonic orders (1..=32, distinct).
-fn parse_orders(s: &str) -> Result<Vec<u16>> {
+fn parse_orders(s: &str) -> Result<Orders, String> {
     let mut out: Vec<u16> = Vec::new();
     for part in s.split(',').map(str::trim) {
         if part.is_empty() {
-            bail!("--orders '{s}': an empty entry; give a comma list such as 1,2,4");
+            return Err("an empty entry; give a comma list such as 1,2,4".into());
         }
-        let k: u16 = part.parse().map_err(|_| anyhow!("--orders '{part}': not a whole number"))?;
+        let k: u16 = part.parse().map_err(|_| format!("'{part}' is not a whole number"))?;
         if k == 0 || usize::from(k) > stepdamp_core::MAX_HARMONIC_ORDER {
-            bail!("--orders {k}: each order must be in 1..={}", stepdamp_core::MAX_HARMONIC_ORDER);
+            return Err(format!("{k}: each order must be in 1..={}", stepdamp_core::MAX_HARMONIC_ORDER));
         }
         if out.contains(&k) {
-            bail!("--orders {k}: listed twice");
+            return Err(format!("{k} is listed twice"));
         }
         out.push(k);
     }
-    if out.is_empty() {
-        bail!("--orders '{s}': give at least one order, e.g. 1,2,4");
-    }
-    Ok(out)
+    Ok(Orders(out))
 }
 
 fn plan_options(orders: &[u16], periods: f64) -> Result<PlanOptions> {
@@ -269,7 +264,7 @@ fn plan_options(orders: &[u16], periods: f64) -> Result<PlanOptions> {
 
 fn run_plan_cmd(a: PlanArgs) -> Result<()> {
     let motor = load_motor(&a.motor)?;
-    let orders = parse_orders(&a.orders)?;
+    let orders = a.orders.0.clone();
     if a.sensorless {
         return run_sensorless_plan_cmd(&a, &motor, &orders);
     }
@@ -293,7 +288,7 @@ mod tests {
     use super::*;
     use std::fmt::Write as _;
 
-    fn args(v: &[&str]) -> IdentifyArgs {
+    fn try_args(v: &[&str]) -> Result<IdentifyArgs, clap::Error> {
         use clap::Parser;
         #[derive(Parser)]
         struct W {
@@ -302,18 +297,47 @@ mod tests {
         }
         let mut all = vec!["identify"];
         all.extend_from_slice(v);
-        W::try_parse_from(all).unwrap().a
+        W::try_parse_from(all).map(|w| w.a)
+    }
+
+    fn args(v: &[&str]) -> IdentifyArgs {
+        try_args(v).unwrap()
     }
 
     const Q: Global = Global { quiet: true };
 
     #[test]
     fn orders_parse_and_reject_nonsense() {
-        assert_eq!(parse_orders("1, 2,4").unwrap(), vec![1, 2, 4]);
+        assert_eq!(parse_orders("1, 2,4").unwrap(), Orders(vec![1, 2, 4]));
         assert!(parse_orders("0").unwrap_err().to_string().contains("1..=32"));
         assert!(parse_orders("4,4").unwrap_err().to_string().contains("twice"));
         assert!(parse_orders("x").unwrap_err().to_string().contains("'x'"));
         assert!(parse_orders("1,,2").unwrap_err().to_string().contains("empty entry"));
+    }
+
+    #[test]
+    fn choices_take_the_library_names_and_a_wrong_one_names_the_value_and_the_names_allowed() {
+        for &e in Effort::ALL {
+            assert_eq!(args(&["--effort", e.name()]).fit.effort, e);
+        }
+        for &m in InertiaMode::ALL {
+            assert_eq!(args(&["--inertia", m.name()]).fit.inertia, m);
+        }
+        for &s in TorqueSign::ALL {
+            let a = args(&["static", "--table", "t.csv", "--sign", s.name(), "--motor", "m", "--out", "o.toml"]);
+            assert!(matches!(a.command, Some(IdentifyCommand::Static(StaticArgs { sign, .. })) if sign == s));
+        }
+        assert_eq!(args(&["--orders", "4,1"]).fit.orders, Orders(vec![4, 1]));
+        for (v, want) in [
+            (&["--effort", "iq"][..], "[possible values: measured, command]"),
+            (&["--inertia", "Auto"], "[possible values: fit, base, auto]"),
+            (&["static", "--table", "t", "--sign", "up", "--motor", "m", "--out", "o"], "on-rotor, holding"),
+            (&["--orders", "1,x"], "'x' is not a whole number"),
+        ] {
+            let e = try_args(v).map(|_| ()).unwrap_err().to_string();
+            let written = v[v.len() - 1 - usize::from(v[0] == "static") * 4];
+            assert!(e.contains(&format!("invalid value '{written}'")) && e.contains(want), "{v:?}: {e}");
+        }
     }
 
     #[test]

@@ -17,7 +17,7 @@ pub(super) const MAX_SIMULATED_ROWS: f64 = 4e6;
 
 pub(super) fn run_run_cmd(a: RunArgs, global: &Global) -> Result<()> {
     let motor = load_motor(&a.motor)?;
-    let orders = parse_orders(&a.orders)?;
+    let orders = a.orders.0.clone();
     if !(a.current_noise.is_finite() && a.current_noise >= 0.0) {
         bail!("--current-noise {}: must be a finite number ≥ 0 A", a.current_noise);
     }
@@ -162,17 +162,11 @@ pub(super) fn refine_summary_csv(report: &RefinementReport) -> Result<String> {
 
 pub(super) fn run_static_cmd(a: StaticArgs) -> Result<()> {
     let base = load_motor(&a.motor)?;
-    let orders = parse_orders(&a.orders)?;
-    let sign = match a.sign.as_str() {
-        "on-rotor" => TorqueSign::OnRotor,
-        "holding" => TorqueSign::Holding,
-        s => bail!(
-            "--sign '{s}': expected on-rotor (the detent torque on the rotor) or holding (the torque that holds it)"
-        ),
-    };
+    let orders = a.orders.0.clone();
+    let sign = a.sign;
     check_output_dir(&a.out)?;
     let pts = read_table(&a.table).map_err(|e| anyhow!("{e}"))?;
-    let kmax = *orders.iter().max().expect("parse_orders returns at least one");
+    let kmax = *orders.iter().max().expect("parse_orders gives at least one order");
     let src = a.table.display().to_string();
     let c = analyse(&pts, base.motor.pole_pairs, sign, kmax, &src).map_err(|e| anyhow!("{e}"))?;
     let report = StaticReport::new(&src, pts.len(), &c, &orders);

@@ -76,9 +76,11 @@ fn options(base: &Profile, orders: &[u16], inertia: InertiaMode) -> FitOptions {
 /// `identify --log …` on sensorless logs: the same outputs as the servo route, and `R`
 /// trimmed into the profile.
 pub(super) fn run_sensorless_fit_cmd(a: &FitArgs, base: &Profile, orders: &[u16], out: &Path) -> Result<()> {
-    for (given, flag) in
-        [(a.ff_on, "--ff-on"), (a.servo_bandwidth.is_some(), "--servo-bandwidth"), (a.effort != "measured", "--effort")]
-    {
+    for (given, flag) in [
+        (a.ff_on, "--ff-on"),
+        (a.servo_bandwidth.is_some(), "--servo-bandwidth"),
+        (a.effort != Effort::MeasuredIq, "--effort"),
+    ] {
         if given {
             bail!("{flag}: the logs are sensorless (no theta_fb_rad), and {flag} applies to servo logs only");
         }

@@ -44,7 +44,7 @@ pub(super) struct Built {
 
 /// Builds the design of one pass; `d_ripple` is the `D` of the viscous torque of the speed
 /// ripple subtracted from the data.
-pub(super) fn build(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Result<Built, FitError> {
+pub(super) fn build(prepared: &[&Prepared], o: &FitOptions, d_ripple: f64) -> Result<Built, FitError> {
     let nr = f64::from(o.pole_pairs);
     let kmax = *o.orders.iter().max().expect("checked non-empty");
 
@@ -130,7 +130,11 @@ pub(super) fn build(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Res
         let th0 = log.theta_fb_rad[prep.lo];
         // The instrument for J: the part of dω/dt periodic in the fitted orders, this log's
         // own (see the module documentation, *Inertia*).
-        let alpha_periodic = if col_j.is_some() { periodic_part(prep, &o.orders, nr) } else { None };
+        let alpha_periodic = if col_j.is_some() {
+            prep.periodic.get_or_init(|| periodic_part(prep, o.orders.len())).as_ref()
+        } else {
+            None
+        };
         let (mut used, mut stalled, mut max_block) = (0usize, 0usize, 0u32);
         #[allow(clippy::needless_range_loop)] // five parallel arrays are read at i
         for i in prep.lo..prep.hi {
@@ -141,11 +145,10 @@ pub(super) fn build(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Res
             }
             let th = prep.theta[i];
             let te = nr * th;
-            let (s1, c1) = te.sin_cos();
-            for (j, &k) in o.orders.iter().enumerate() {
-                let (s, c) = if k == 1 { (s1, c1) } else { (f64::from(k) * te).sin_cos() };
-                row[2 * j] = s * harmonic_gain[j];
-                row[2 * j + 1] = c * harmonic_gain[j];
+            let sc = prep.harmonics_at(i);
+            for (j, g) in harmonic_gain.iter().enumerate() {
+                row[2 * j] = sc[2 * j] * g;
+                row[2 * j + 1] = sc[2 * j + 1] * g;
             }
             row[col_fs] = wbar.signum();
             if let Some(cd) = col_d {
@@ -157,7 +160,7 @@ pub(super) fn build(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Res
             let alpha = kin.alpha_rad_s2[i];
             let j_alpha = match col_j {
                 Some(cj) => {
-                    row[cj] = alpha_periodic.as_ref().map_or(0.0, |c| c.at(te));
+                    row[cj] = alpha_periodic.map_or(0.0, |c| c.at(sc));
                     0.0
                 }
                 None => o.inertia_kg_m2 * alpha,
@@ -204,41 +207,37 @@ pub(super) fn build(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Res
 
 /// Fourier coefficients (sin, cos per order, then the mean) of a log's `dω/dt` against the
 /// electrical angle over its used window.
-struct Periodic {
-    orders: Vec<u16>,
+#[derive(Clone, Debug)]
+pub(super) struct Periodic {
     coef: Vec<f64>,
 }
 
 impl Periodic {
-    fn at(&self, te: f64) -> f64 {
-        let mut v = self.coef[2 * self.orders.len()];
-        for (j, &k) in self.orders.iter().enumerate() {
-            let (s, c) = (f64::from(k) * te).sin_cos();
-            v += self.coef[2 * j] * s + self.coef[2 * j + 1] * c;
+    /// The value at a sample whose `sin, cos(k·θe)` per order are `sc`
+    /// ([`Prepared::harmonics_at`]).
+    fn at(&self, sc: &[f64]) -> f64 {
+        let mut v = self.coef[sc.len()];
+        for (j, sc) in sc.chunks_exact(2).enumerate() {
+            v += self.coef[2 * j] * sc[0] + self.coef[2 * j + 1] * sc[1];
         }
         v
     }
 }
 
-/// The least-squares fit of `dω/dt` over the window of `prep` on `sin, cos(k·Nr·θ_fb)` of
-/// `orders` and a constant; `None` when it cannot be solved.
-fn periodic_part(prep: &Prepared, orders: &[u16], nr: f64) -> Option<Periodic> {
-    let m = 2 * orders.len() + 1;
+/// The least-squares fit of `dω/dt` over the window of `prep` on `sin, cos(k·Nr·θ)` of the
+/// fit's `nh` orders and a constant; `None` when it cannot be solved.
+fn periodic_part(prep: &Prepared, nh: usize) -> Option<Periodic> {
+    let m = 2 * nh + 1;
     let mut design = Design::new(m);
     let mut row = vec![0.0; m];
     for i in (prep.lo..prep.hi).filter(|&i| prep.keep[i]) {
-        let te = nr * prep.theta[i];
-        for (j, &k) in orders.iter().enumerate() {
-            let (s, c) = (f64::from(k) * te).sin_cos();
-            row[2 * j] = s;
-            row[2 * j + 1] = c;
-        }
+        row[..m - 1].copy_from_slice(prep.harmonics_at(i));
         row[m - 1] = 1.0;
         // One block: only the coefficients are used, not their covariance.
         design.push(&row, prep.kin.alpha_rad_s2[i], 0);
     }
     let coef = lsq::solve(&design).ok()?.beta;
-    coef.iter().all(|v| v.is_finite()).then(|| Periodic { orders: orders.to_vec(), coef })
+    coef.iter().all(|v| v.is_finite()).then_some(Periodic { coef })
 }
 
 /// The friction and constant terms the logs' levels (direction, `|ω̄|`) can separate, and
@@ -249,7 +248,7 @@ struct FrictionTerms {
     warning: Option<Warning>,
 }
 
-fn friction_terms(prepared: &[Prepared], viscous_fallback: f64) -> FrictionTerms {
+fn friction_terms(prepared: &[&Prepared], viscous_fallback: f64) -> FrictionTerms {
     // (min, max, mean) of |ω̄| over the logs of one direction.
     let range = |forward: bool| {
         let speeds: Vec<f64> = prepared.iter().filter(|p| (p.speed > 0.0) == forward).map(|p| p.speed.abs()).collect();

@@ -175,7 +175,7 @@ pub fn fit(logs: &[RunLog], o: &FitOptions) -> Result<Fit, FitError> {
     let held = FitOptions { fit_inertia: false, ..o.clone() };
     let reacts: Vec<bool> = prepared.iter().map(|p| p.reacts_to_counts).collect();
     let left_out = crate::conditions::slow_levels_to_leave_out(&speeds, &reacts, |runs| {
-        let sub: Vec<Prepared> = runs.iter().map(|&i| prepared[i].clone()).collect();
+        let sub: Vec<&Prepared> = runs.iter().map(|&i| &prepared[i]).collect();
         fit_prepared(&sub, &held, o.viscous_fallback_nm_s_per_rad).ok().map(|f| f.coulomb_friction_nm.value)
     });
     let condition = left_out.map(|l| {
@@ -194,6 +194,7 @@ pub fn fit(logs: &[RunLog], o: &FitOptions) -> Result<Fit, FitError> {
         })
     });
     // Hook (crate::conditions): fit J or hold the base's, and say which.
+    let prepared: Vec<&Prepared> = prepared.iter().collect();
     let speeds: Vec<f64> = prepared.iter().map(|p| p.speed).collect();
     let choice = crate::conditions::inertia_choice(o.fit_inertia, o.inertia, &speeds);
     let mut f = two_passes(&prepared, &FitOptions { fit_inertia: choice.is_ok(), ..o.clone() })?;
@@ -217,7 +218,7 @@ pub fn fit(logs: &[RunLog], o: &FitOptions) -> Result<Fit, FitError> {
     Ok(f)
 }
 
-fn two_passes(prepared: &[Prepared], o: &FitOptions) -> Result<Fit, FitError> {
+fn two_passes(prepared: &[&Prepared], o: &FitOptions) -> Result<Fit, FitError> {
     let first = fit_prepared(prepared, o, o.viscous_fallback_nm_s_per_rad)?;
     match first.viscous_nm_s_per_rad {
         Some(d) => fit_prepared(prepared, o, d.value.max(0.0)),

@@ -13,6 +13,11 @@ pub enum Effort {
     CommandIq,
 }
 
+stepdamp_core::named_choice!(Effort, "effort", "measured, command", [
+    MeasuredIq => "measured",
+    CommandIq => "command",
+]);
+
 /// Options of the fit.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FitOptions {

@@ -1,14 +1,15 @@
 //! The logs made ready for the fit: the angle, the kinematics, the steady window and the
 //! samples where the rotor moves.
 
+use super::design::Periodic;
 use super::thresholds::{MIN_STEADY_SAMPLES, STEADY_SPEED_FRACTION};
 use super::{FitError, FitOptions};
 use crate::kinematics::{self, Kinematics};
 use crate::log::RunLog;
+use std::cell::OnceCell;
 use std::f64::consts::TAU;
 
 /// A log with its kinematics and the window of it that is used.
-#[derive(Clone)]
 pub(super) struct Prepared<'a> {
     pub(super) log: &'a RunLog,
     /// The angle the fit uses, rad: edge-timed or the logged `θ_fb` ([`crate::stick`]).
@@ -28,6 +29,37 @@ pub(super) struct Prepared<'a> {
     /// Encoder steps against the direction of travel in the window, and all steps.
     pub(super) back_steps: usize,
     pub(super) steps: usize,
+    /// `sin(k·Nr·θ), cos(k·Nr·θ)` for each of the fit's orders `k` at each sample of the
+    /// window, `2·orders` values per sample ([`Prepared::harmonics_at`]): every pass of the
+    /// fit reads the same values, so they are computed once.
+    harmonics: Vec<f64>,
+    /// The periodic part of `dω/dt`, the instrument for `J` ([`super::design`]): the same
+    /// in every pass that fits `J`, so solved once, when first needed.
+    pub(super) periodic: OnceCell<Option<Periodic>>,
+}
+
+impl Prepared<'_> {
+    /// `sin(k·Nr·θ), cos(k·Nr·θ)` per order of the fit at sample `i` (in `lo..hi`), in the
+    /// order of [`FitOptions::orders`].
+    #[inline]
+    pub(super) fn harmonics_at(&self, i: usize) -> &[f64] {
+        let m = self.harmonics.len() / (self.hi - self.lo);
+        &self.harmonics[(i - self.lo) * m..(i - self.lo + 1) * m]
+    }
+}
+
+/// `sin, cos(k·Nr·θ)` of each order for each angle in `theta`, rad, row by row.
+fn harmonics(theta: &[f64], nr: f64, orders: &[u16]) -> Vec<f64> {
+    let mut out = Vec::with_capacity(theta.len() * 2 * orders.len());
+    for &th in theta {
+        let te = nr * th;
+        for &k in orders {
+            let (s, c) = (f64::from(k) * te).sin_cos();
+            out.push(s);
+            out.push(c);
+        }
+    }
+    out
 }
 
 pub(super) fn prepare<'a>(log: &'a RunLog, o: &FitOptions, kmax: u16) -> Result<Prepared<'a>, FitError> {
@@ -97,5 +129,20 @@ pub(super) fn prepare<'a>(log: &'a RunLog, o: &FitOptions, kmax: u16) -> Result<
     });
     let keep = edges
         .map_or_else(|| vec![true; n], |e| crate::stick::moving_mask(&e, speed, kin.corner_hz, 1.0 / ts, &o.stick));
-    Ok(Prepared { log, theta, keep, reacts_to_counts, kin, lo, hi, speed, periods, back_steps, steps })
+    let harmonics = harmonics(&theta[lo..hi], nr, &o.orders);
+    Ok(Prepared {
+        log,
+        theta,
+        keep,
+        reacts_to_counts,
+        kin,
+        lo,
+        hi,
+        speed,
+        periods,
+        back_steps,
+        steps,
+        harmonics,
+        periodic: OnceCell::new(),
+    })
 }

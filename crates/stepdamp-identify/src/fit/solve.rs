@@ -9,7 +9,7 @@ use crate::lsq::{self, LsqError};
 
 /// Fits the prepared logs once; `d_ripple` is the `D` of the viscous torque of the speed
 /// ripple subtracted from the data.
-pub(super) fn fit_prepared(prepared: &[Prepared], o: &FitOptions, d_ripple: f64) -> Result<Fit, FitError> {
+pub(super) fn fit_prepared(prepared: &[&Prepared], o: &FitOptions, d_ripple: f64) -> Result<Fit, FitError> {
     let Built { design, cols, theta_e: theta_e_used, alpha: alpha_used, mut runs, mut warnings, one_direction, fit_d } =
         design::build(prepared, o, d_ripple)?;
     let non_finite = |what: String| non_finite(prepared, o, what);
@@ -97,7 +97,7 @@ pub(super) fn fit_prepared(prepared: &[Prepared], o: &FitOptions, d_ripple: f64)
 }
 
 /// The error for a value that is not finite, naming the logs and where their effort is largest.
-pub(super) fn non_finite(prepared: &[Prepared], o: &FitOptions, what: String) -> FitError {
+pub(super) fn non_finite(prepared: &[&Prepared], o: &FitOptions, what: String) -> FitError {
     let logs = prepared.iter().map(|p| p.log.source.as_str()).collect::<Vec<_>>().join(", ");
     FitError::NonFinite { what, logs, detail: largest_effort(prepared, o) }
 }
@@ -117,7 +117,7 @@ fn non_finite_in(sol: &lsq::Solution) -> Option<&'static str> {
 }
 
 /// Where the effort of the logs is largest in magnitude (or not a number), for errors.
-fn largest_effort(prepared: &[Prepared], o: &FitOptions) -> String {
+fn largest_effort(prepared: &[&Prepared], o: &FitOptions) -> String {
     let mut largest: Option<(f64, &str)> = None;
     for p in prepared {
         let effort = match o.effort {
