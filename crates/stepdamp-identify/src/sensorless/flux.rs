@@ -20,6 +20,11 @@
 //!    [`FluxOptions::min_standstill_s`], the base profile's `R` is used and the report says
 //!    so: an error `ΔR` then turns the angle by about `ΔR·I/(Km·ω)` rad (electrical) — at
 //!    1 rad/s on patent-motor 10 % of `R` is 0.57 rad.
+//!    **Current offset**: an offset `ε` of the sampled currents (a sensor's, or PWM ripple
+//!    sampled off its mean) makes the loop hold `ī_true = ī − ε`, so the standstill reads
+//!    `v̄ = R·(ī − ε)` and whole commanded periods of running read `v̄_run = −R·ε`
+//!    ([`running_mean_voltage`]); [`Standstill::offset_corrected`] takes `v̄_run` off, and
+//!    [`super::estimate`] takes `ε = −v̄_run/R` off every sample.
 //! 2. **Integration**: the voltage is the mean over each period (as logged), the current
 //!    the trapezoid of the samples at its ends.
 //! 3. **Centre** `c`: a circle fit (Kåsa: linear least squares in `c` and `r² − |c|²`) over
