@@ -29,6 +29,10 @@ pub(crate) fn err(e: impl std::fmt::Display) -> PyErr {
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("StepdampError", m.py().get_type::<StepdampError>())?;
     m.add("PRESETS", stepdamp_sim::PRESETS.to_vec())?;
+    // The run shape's defaults, from their one home (stepdamp_sim::RunSpec).
+    m.add("DURATION_S", stepdamp_sim::RunSpec::DURATION_S)?;
+    m.add("DWELL_S", stepdamp_sim::RunSpec::DWELL_S)?;
+    m.add("RAMP_S", stepdamp_sim::RunSpec::RAMP_S)?;
     m.add_class::<profile::PyProfile>()?;
     m.add_function(wrap_pyfunction!(sim::simulate, m)?)?;
     m.add_function(wrap_pyfunction!(sim::sweep, m)?)?;

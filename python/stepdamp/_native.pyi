@@ -6,6 +6,12 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 import numpy as np
 import numpy.typing as npt
 
+DURATION_S: float
+"""Default run duration, s (stepdamp_sim::RunSpec::DURATION_S)."""
+DWELL_S: float
+"""Default standstill before the ramp, s."""
+RAMP_S: float
+"""Default ramp from rest, s."""
 PRESETS: List[str]
 
 class StepdampError(ValueError):
@@ -72,11 +78,11 @@ def simulate(
     mode: str = "open-loop",
     compensation: str = "patent",
     speed_rad_s: float = 10.0,
-    duration_s: float = 1.5,
+    duration_s: float = ...,
     *,
     controller: Optional[Profile] = None,
-    dwell_s: float = 0.05,
-    ramp_s: float = 0.1,
+    dwell_s: float = ...,
+    ramp_s: float = ...,
     load_torque_nm: float = 0.0,
     current_noise_a: float = 0.0,
     substeps: Optional[int] = None,
@@ -90,7 +96,7 @@ def sweep(
     speeds_rad_s: Sequence[float],
     *,
     controller: Optional[Profile] = None,
-    duration_s: float = 1.5,
+    duration_s: float = ...,
     load_torque_nm: float = 0.0,
     current_noise_a: float = 0.0,
     substeps: Optional[int] = None,
