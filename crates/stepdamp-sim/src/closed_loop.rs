@@ -448,7 +448,7 @@ impl ClosedLoop {
         let m = Measurement {
             i_a_a: self.sample_current(i_a),
             i_b_a: self.sample_current(i_b),
-            encoder_count: (floor_i64(theta_read * self.counts_per_rad)) as u32,
+            encoder_count: (crate::sensors::floor_i64(theta_read * self.counts_per_rad)) as u32,
         };
         // `!=` is also true while the last command is NaN, so the first period sets it.
         if speed_cmd_rad_s != self.last_speed_cmd {
@@ -470,35 +470,11 @@ impl ClosedLoop {
     }
 }
 
-/// `x.floor() as i64` without the library call `floor` is on baseline x86-64 (no SSE4.1
-/// `roundsd`): truncate, then step down when that rounded up. Same result for every `f64`,
-/// including NaN (0) and out-of-range values (saturated).
-#[inline]
-fn floor_i64(x: f64) -> i64 {
-    let t = x as i64;
-    if (t as f64) > x { t.saturating_sub(1) } else { t }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::profile::ProfileData;
     use crate::runlog::{FromRecord, LogRow};
-    use proptest::prelude::*;
-
-    proptest! {
-        #[test]
-        fn floor_i64_is_floor(x in proptest::num::f64::ANY) {
-            prop_assert_eq!(floor_i64(x), x.floor() as i64);
-        }
-    }
-
-    #[test]
-    fn floor_i64_is_floor_at_the_edges() {
-        for x in [0.0, -0.0, -0.5, 0.5, -1.0, 1e300, -1e300, f64::NAN, f64::INFINITY, -f64::INFINITY, 9.2e18, -9.3e18] {
-            assert_eq!(floor_i64(x), x.floor() as i64, "{x}");
-        }
-    }
 
     fn patent() -> Profile {
         Profile::preset("patent-motor").unwrap()
