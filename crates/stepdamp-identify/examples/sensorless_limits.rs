@@ -100,6 +100,7 @@ fn main() {
         PLAN,
         Condition { name: "current noise 20 mA", noise_a: 0.02, ..PLAN },
         Condition { name: "current noise 50 mA", noise_a: 0.05, ..PLAN },
+        Condition { name: "current noise 100 mA", noise_a: 0.1, ..PLAN },
         Condition { name: "R not trimmed, base exact", trim_r: false, r: 1.0, ..PLAN },
         Condition { name: "R not trimmed, base +1 %", trim_r: false, r: 1.01, ..PLAN },
         Condition { name: "R not trimmed, base +10 %", trim_r: false, ..PLAN },
