@@ -186,6 +186,22 @@ pub enum LogError {
         /// The limit.
         max: f64,
     },
+    /// A current or voltage beyond any stepper drive's (a sensorless log).
+    #[error("{path}: line {line}, column '{column}': {value:e} {unit} is beyond ±{max:e} {unit} (is it in {unit}?)")]
+    ValueOutOfRange {
+        /// The file.
+        path: String,
+        /// Line number.
+        line: u64,
+        /// The column.
+        column: &'static str,
+        /// The value.
+        value: f64,
+        /// The limit.
+        max: f64,
+        /// Its unit.
+        unit: &'static str,
+    },
     /// A row has more or fewer fields than the header.
     #[error("{path}: line {line}: {found} fields, the header has {expected}")]
     ShortRow {

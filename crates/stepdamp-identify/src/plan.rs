@@ -186,9 +186,10 @@ pub enum PlanError {
     #[error("{0}")]
     Options(String),
     /// The simulator refused the set-up.
+    /// (Not a `source`: the message already carries it, and a chain would print it twice.)
     #[cfg(feature = "simulate")]
     #[error("simulator: {0}")]
-    Sim(#[from] stepdamp_sim::SimError),
+    Sim(stepdamp_sim::SimError),
     /// A file could not be written.
     #[error("{path}: cannot write: {source}")]
     Write {
@@ -197,6 +198,13 @@ pub enum PlanError {
         /// Why.
         source: std::io::Error,
     },
+}
+
+#[cfg(feature = "simulate")]
+impl From<stepdamp_sim::SimError> for PlanError {
+    fn from(e: stepdamp_sim::SimError) -> Self {
+        PlanError::Sim(e)
+    }
 }
 
 /// Typical detent when the profile has none (design.md §7): `A_4` 5 %, `A_2` 2.5 %,

@@ -204,8 +204,11 @@ pub fn fit(logs: &[RunLog], o: &FitOptions) -> Result<Fit, FitError> {
         }
         (Ok(_), Some(j)) => {
             f = two_passes(&prepared, &held)?;
-            let reason =
-                format!("its interval ±{:.0} % is wide (the fit gave {:.4e} kg·m²)", 100.0 * j.ci95 / j.value, j.value);
+            let reason = if j.value > 0.0 {
+                format!("its interval ±{:.0} % is wide (the fit gave {:.4e} kg·m²)", 100.0 * j.ci95 / j.value, j.value)
+            } else {
+                format!("the fit gave a J that is not positive ({:.4e} ± {:.1e} kg·m²)", j.value, j.ci95)
+            };
             crate::conditions::Decision::InertiaHeld { base: o.inertia_kg_m2, reason }
         }
         (Err(reason), _) => crate::conditions::Decision::InertiaHeld { base: o.inertia_kg_m2, reason },

@@ -132,7 +132,51 @@ pub enum FluxError {
         /// Time of the window, s.
         t_s: f64,
     },
+    /// The standstill gives an `R` far from the base's (too little current, voltages that
+    /// are not the applied ones, or the wrong base).
+    #[error(
+        "{log}: the standstill gives R = {value_ohm:.4} Ω, outside {min_ohm:.4}–{max_ohm:.4} Ω (1/{MAX_R_TRIM_RATIO}–{MAX_R_TRIM_RATIO} × the base's): is the holding current on at standstill, and are v_a_v, v_b_v the applied voltages in V?"
+    )]
+    Resistance {
+        /// The log.
+        log: String,
+        /// The resistance its standstill gives, Ω.
+        value_ohm: f64,
+        /// The lowest accepted, Ω.
+        min_ohm: f64,
+        /// The highest accepted, Ω.
+        max_ohm: f64,
+    },
+    /// The estimated rotor angle does not follow the command: the rotor stalled or lost
+    /// steps (or the voltages are not the applied ones).
+    #[error(
+        "{log}: the estimated rotor does not follow the command (mean |load angle| {mean_rad:.2} rad electrical, beyond π/2 where the rotor pulls out): the rotor stalled or lost steps, or v_a_v, v_b_v are not the applied voltages"
+    )]
+    NotFollowing {
+        /// The log.
+        log: String,
+        /// Mean `|θe_cmd − θe|` over the moving part, rad.
+        mean_rad: f64,
+    },
+    /// The command steps further between two rows than the controller can.
+    #[error(
+        "{log}: at t = {t_s} s theta_cmd_rad steps by {step_rad:.4e} rad in one row, more than {max_rad:.4e} rad (a quarter electrical turn): not one continuous run"
+    )]
+    CommandJump {
+        /// The log.
+        log: String,
+        /// Time of the row after the step, s.
+        t_s: f64,
+        /// The step, rad (mechanical).
+        step_rad: f64,
+        /// The largest step accepted, rad.
+        max_rad: f64,
+    },
 }
+
+/// A standstill's `R` must be within this factor of the base profile's (copper's `R` moves
+/// 0.39 %/K: a factor 2 is 250 K; beyond it the standstill, not the motor, is wrong).
+pub const MAX_R_TRIM_RATIO: f64 = 2.0;
 
 /// The standstill at the start of a log and what it says about `R`: from its settled
 /// part's mean voltage and current.
@@ -221,13 +265,22 @@ pub fn running_mean_voltage(log: &SensorlessLog, still: usize, pole_pairs: u16) 
 
 /// `R` = the ratio of the [`Standstill::sums`] pooled over the standstills that have them (one winding, several
 /// runs: pooling divides the noise by the square root of the runs), else `base_ohm`.
-pub fn pooled_resistance(standstills: &[Standstill], base_ohm: f64) -> (f64, ResistanceSource) {
-    let (vi, ii) = standstills.iter().filter_map(|s| s.sums).fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
-    if ii > 0.0 && (vi / ii).is_finite() && vi > 0.0 {
-        (vi / ii, ResistanceSource::Standstill)
-    } else {
-        (base_ohm, ResistanceSource::Base)
+pub fn pooled_resistance(
+    logs: &[SensorlessLog],
+    standstills: &[Standstill],
+    base_ohm: f64,
+) -> Result<(f64, ResistanceSource), FluxError> {
+    let (min_ohm, max_ohm) = (base_ohm / MAX_R_TRIM_RATIO, base_ohm * MAX_R_TRIM_RATIO);
+    for (log, s) in logs.iter().zip(standstills) {
+        if let Some((vi, ii)) = s.sums {
+            let value_ohm = vi / ii;
+            if !(value_ohm >= min_ohm && value_ohm <= max_ohm) {
+                return Err(FluxError::Resistance { log: log.source.clone(), value_ohm, min_ohm, max_ohm });
+            }
+        }
     }
+    let (vi, ii) = standstills.iter().filter_map(|s| s.sums).fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+    Ok(if ii > 0.0 { (vi / ii, ResistanceSource::Standstill) } else { (base_ohm, ResistanceSource::Base) })
 }
 
 /// Estimates the rotor's electrical angle over `log` (module documentation) with the
@@ -246,6 +299,12 @@ pub fn rotor_angle(
     }
     let cmd0 = log.theta_cmd_rad[0];
     let still = Standstill::of(log, o)?.samples;
+    // A quarter electrical turn per row is the controller's limit (π/2 per period).
+    let max_rad = 0.25 * TAU / nr;
+    if let Some(k) = log.theta_cmd_rad.windows(2).position(|w| (w[1] - w[0]).abs() > max_rad) {
+        let step_rad = (log.theta_cmd_rad[k + 1] - log.theta_cmd_rad[k]).abs();
+        return Err(FluxError::CommandJump { log: name(), t_s: log.t_s[k + 1], step_rad, max_rad });
+    }
     // 2. Flux without its constant.
     let mut lam = Vec::with_capacity(n);
     let (mut px, mut py) = (0.0, 0.0);
@@ -294,6 +353,14 @@ pub fn rotor_angle(
         if k >= still {
             radius.push(x.hypot(y));
         }
+    }
+    // A rotor that follows keeps |δ| = |θe_cmd − θe| below π/2 (pull-out); a stalled one sits
+    // at π (the flux estimate is then −L·i, opposite the current) or slips ever further.
+    let moving = theta_e_rad.len().saturating_sub(still).max(1) as f64;
+    let mean_rad =
+        theta_e_rad.iter().zip(&log.theta_cmd_rad).skip(still).map(|(th, c)| (nr * c - th).abs()).sum::<f64>() / moving;
+    if mean_rad.is_nan() || mean_rad > 0.5 * std::f64::consts::PI {
+        return Err(FluxError::NotFollowing { log: name(), mean_rad });
     }
     let m = radius.len().max(1) as f64;
     let flux_wb = radius.iter().sum::<f64>() / m;

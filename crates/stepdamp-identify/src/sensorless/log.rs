@@ -8,8 +8,10 @@
 //! | `i_a_a`, `i_b_a` | A | the sampled phase currents at `t_s` |
 //! | `v_a_v`, `v_b_v` | V | the mean voltage across each winding over `[t_s, t_s + Ts)`, after the modulator's limiting (the voltage actually applied in that interval) |
 //!
-//! Other columns are ignored and listed in [`SensorlessLog::ignored_columns`]. Errors are
-//! the run log's ([`crate::log::LogError`]): file, line and column.
+//! Unknown columns are ignored and listed in [`SensorlessLog::ignored_columns`] (the servo
+//! log's known columns, such as `theta_fb_rad` or `i_q_a`, are not read and not listed).
+//! Errors are the run log's ([`crate::log::LogError`]): file, line and column; a current
+//! beyond [`MAX_CURRENT_A`] or a voltage beyond [`MAX_VOLTAGE_V`] is refused where it is.
 
 use crate::log::columns::{ColumnReader, Columns};
 use crate::log::{KNOWN_COLUMNS, LogError, MAX_ANGLE_RAD};
@@ -18,6 +20,13 @@ use std::path::Path;
 
 /// The columns a sensorless log must carry, in the order of [`SensorlessLog`]'s fields.
 pub const SENSORLESS_COLUMNS: [&str; 6] = ["t_s", "theta_cmd_rad", "i_a_a", "i_b_a", "v_a_v", "v_b_v"];
+
+/// Largest `|i|` accepted, A: ten times the largest holding current a profile may have
+/// would still be 100 A; beyond 10⁴ A a value is not a stepper's current.
+pub const MAX_CURRENT_A: f64 = 1e4;
+
+/// Largest `|v|` accepted, V: beyond 10⁵ V a value is not a stepper drive's voltage.
+pub const MAX_VOLTAGE_V: f64 = 1e5;
 
 /// What each column of [`SENSORLESS_COLUMNS`] is (for the missing-column message).
 const NEEDS: [&str; 6] = [
@@ -103,6 +112,16 @@ pub fn parse_sensorless_log<R: Read>(reader: R, source: &str) -> Result<Sensorle
         let th = row[1];
         if th.abs() > MAX_ANGLE_RAD {
             return Err(LogError::AngleOutOfRange { path: path.clone(), line, value: th, max: MAX_ANGLE_RAD });
+        }
+        for (i, (max, unit)) in [(MAX_CURRENT_A, "A"), (MAX_CURRENT_A, "A"), (MAX_VOLTAGE_V, "V"), (MAX_VOLTAGE_V, "V")]
+            .into_iter()
+            .enumerate()
+        {
+            let value = row[2 + i];
+            if value.abs() > max {
+                let column = SENSORLESS_COLUMNS[2 + i];
+                return Err(LogError::ValueOutOfRange { path: path.clone(), line, column, value, max, unit });
+            }
         }
         Ok(())
     })?;

@@ -98,7 +98,7 @@ pub fn estimate(logs: &[SensorlessLog], w: &Winding, o: &FluxOptions) -> Result<
         logs.iter().zip(&still).map(|(l, s)| flux::running_mean_voltage(l, s.samples, w.pole_pairs)).collect();
     let corrected: Vec<_> =
         still.iter().zip(&running).map(|(s, r)| r.map_or(*s, |(v, _)| s.offset_corrected(v))).collect();
-    let (resistance_ohm, resistance_source) = pooled_resistance(&corrected, w.resistance_ohm);
+    let (resistance_ohm, resistance_source) = pooled_resistance(logs, &corrected, w.resistance_ohm)?;
     // The sampled currents' offset, pooled over the runs: `ε = −v̄_run/R`.
     let (sa, sb, sn) = running
         .iter()

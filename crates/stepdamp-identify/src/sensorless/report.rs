@@ -9,6 +9,10 @@ use serde::Serialize;
 /// fraction (a wrong `Km` scales every identified torque; a wrong `L` shows here too).
 pub const KM_DISAGREEMENT: f64 = 0.1;
 
+/// Note a log whose flux radius ripples by more than this fraction of its mean (0.2–0.5 % on
+/// the simulator at 5 mA; an `L` 20 % off gives about 4 %).
+pub const MAX_RADIUS_RIPPLE: f64 = 0.05;
+
 /// What `stepdamp identify` prints on the sensorless route (text: `Display`; JSON:
 /// `Serialize`).
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -47,6 +51,14 @@ impl SensorlessReport {
                     100.0 * rel
                 ));
             }
+        }
+        for a in e.angles.iter().filter(|a| a.radius_ripple > MAX_RADIUS_RIPPLE) {
+            notes.push(format!(
+                "{}: the flux circle's radius ripples by {:.1} % (more than {:.0} %): the angle is unreliable there (a jump in the log, a wrong L, voltages that are not the applied ones?)",
+                a.log,
+                100.0 * a.radius_ripple,
+                100.0 * MAX_RADIUS_RIPPLE
+            ));
         }
         if e.resistance_source == ResistanceSource::Base {
             notes.push(format!(

@@ -33,7 +33,7 @@ fn the_flux_angle_follows_the_true_rotor_angle() {
     let log = SensorlessLog::from_rows(&rows, "sim");
     let o = FluxOptions::default();
     let st = Standstill::of(&log, &o).unwrap();
-    let (r, source) = pooled_resistance(&[st], 1.0);
+    let (r, source) = pooled_resistance(std::slice::from_ref(&log), &[st], 1.0).unwrap();
     assert_eq!(source, ResistanceSource::Standstill);
     eprintln!("R trim error {:.2e}", r / 0.9 - 1.0);
     assert!((r / 0.9 - 1.0).abs() < 2e-4, "R {r}");
@@ -134,8 +134,73 @@ fn the_standstill_resistance_is_not_biased_by_the_noise_the_current_loop_answers
         i = i * decay + v / r * (1.0 - decay);
     }
     let st = Standstill::of(&log, &FluxOptions::default()).unwrap();
-    let (r_trim, source) = pooled_resistance(&[st], 1.0);
+    let (r_trim, source) = pooled_resistance(std::slice::from_ref(&log), &[st], 1.0).unwrap();
     assert_eq!(source, ResistanceSource::Standstill);
     eprintln!("R trim error {:.2e}", r_trim / r - 1.0);
     assert!((r_trim / r - 1.0).abs() < 3e-4, "R {r_trim}");
+}
+
+/// A simulated open-loop log of patent-motor (0.2 s standstill, then 1 rad/s).
+fn patent_log() -> SensorlessLog {
+    let m = patent();
+    let opts = SimOptions { current_noise_a: 0.005, seed: 5, ..SimOptions::default() };
+    let mut lp = ClosedLoop::new(&m, &m, Mode::OpenLoop, Compensation::Off, &opts).unwrap();
+    let spec = RunSpec { speed_rad_s: 1.0, dwell_s: 0.2, ramp_s: 0.2, duration_s: 1.0, window_s: 0.5 };
+    let pwm = m.drive.pwm_hz;
+    let mut rows = Vec::new();
+    run(&mut lp, &spec, pwm, |k, rec| rows.push(stepdamp_sim::runlog::FromRecord::from_record(k, pwm, 50, rec)))
+        .unwrap();
+    SensorlessLog::from_rows(&rows, "sim")
+}
+
+/// Logs that are not what the route needs fail with the reason, never with a profile.
+#[test]
+fn a_stalled_rotor_a_bad_standstill_and_a_jumping_command_are_refused() {
+    use super::flux::FluxError;
+    let w = winding(&patent());
+    let o = FluxOptions::default();
+    let good = patent_log();
+    assert!(super::estimate(std::slice::from_ref(&good), &w, &o).is_ok());
+    // A stalled rotor: no back-EMF, v = R·i.
+    let mut stalled = good.clone();
+    stalled.v_a_v = stalled.i_a_a.iter().map(|i| 0.9 * i).collect();
+    stalled.v_b_v = stalled.i_b_a.iter().map(|i| 0.9 * i).collect();
+    let e = super::estimate(&[stalled], &w, &o).unwrap_err();
+    assert!(matches!(e, FluxError::NotFollowing { .. }), "{e}");
+    // Almost no current at standstill: R would come out hundreds of ohms.
+    let mut weak = good.clone();
+    let still = Standstill::of(&weak, &o).unwrap().samples;
+    for k in 0..still {
+        weak.i_a_a[k] = 0.005;
+        weak.i_b_a[k] = 0.0;
+    }
+    let e = super::estimate(&[weak], &w, &o).unwrap_err();
+    assert!(matches!(e, FluxError::Resistance { .. }) && e.to_string().contains("sim"), "{e}");
+    // Negative voltages at standstill: R < 0 is refused too, not replaced.
+    let mut neg = good.clone();
+    for k in 0..still {
+        neg.v_a_v[k] = -neg.v_a_v[k];
+        neg.v_b_v[k] = -neg.v_b_v[k];
+    }
+    assert!(matches!(super::estimate(&[neg], &w, &o).unwrap_err(), FluxError::Resistance { .. }));
+    // A step of the command between two rows.
+    let mut jump = good;
+    let n = jump.len();
+    for c in &mut jump.theta_cmd_rad[n / 2..] {
+        *c += 1.0;
+    }
+    let e = super::estimate(&[jump], &w, &o).unwrap_err();
+    assert!(matches!(e, FluxError::CommandJump { .. }), "{e}");
+}
+
+/// A current or voltage no drive has is refused where it is, by line and column.
+#[test]
+fn an_absurd_current_or_voltage_names_its_line_and_column() {
+    use super::log::parse_sensorless_log;
+    let csv = "t_s,theta_cmd_rad,i_a_a,i_b_a,v_a_v,v_b_v\n0,0,1.9,0,1.7,0\n0.00005,0,1.9,0,1e300,0\n";
+    let e = parse_sensorless_log(csv.as_bytes(), "x.csv").unwrap_err().to_string();
+    assert!(e.contains("x.csv") && e.contains("line 3") && e.contains("v_a_v") && e.contains("1e300"), "{e}");
+    let csv = "t_s,theta_cmd_rad,i_a_a,i_b_a,v_a_v,v_b_v\n0,0,1.9,-2e4,1.7,0\n";
+    let e = parse_sensorless_log(csv.as_bytes(), "y.csv").unwrap_err().to_string();
+    assert!(e.contains("line 2") && e.contains("i_b_a") && e.contains(" A"), "{e}");
 }
