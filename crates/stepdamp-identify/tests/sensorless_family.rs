@@ -12,6 +12,8 @@
 //!   the true profile's reduction in dB at every resonance (the largest peak-to-peak
 //!   velocity error over 0.92–1.08 × the resonance speed, compensation off against on).
 
+#![cfg(feature = "simulate")]
+
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
