@@ -188,18 +188,30 @@ def _log_arg(log: Any, i: int):
     return ("csv", frame.to_csv(index=False, float_format="%.17g"), f"<DataFrame {i}>")
 
 
-def identify(logs: Sequence[Any], base: Profile, orders: Sequence[int] = (1, 2, 4), name: Union[str, None] = None):
+def identify(
+    logs: Sequence[Any],
+    base: Profile,
+    orders: Sequence[int] = (1, 2, 4),
+    name: Union[str, None] = None,
+    sensorless: Union[bool, None] = None,
+):
     """Identifies the detent harmonics, Coulomb and viscous friction and the inertia from
-    servo-mode run logs (the CLI's ``stepdamp identify fit``).
+    run logs (the CLI's ``stepdamp identify``).
 
     ``logs``: paths of run-log CSV files, pandas DataFrames or dicts of arrays with the
-    run-log columns (``t_s``, ``theta_fb_rad``, ``i_q_a`` or ``i_a_a``/``i_b_a``, optionally
-    ``iq_cmd_a``). ``base``: the profile whose Km, Nr, encoder and servo settings apply.
-    Returns ``(profile, report)``: ``base`` with the identified values (named ``name``) and
-    the fit report (estimates with 95 % half-widths, N·m, rad, kg·m²; warnings).
+    run-log columns: servo logs ``t_s``, ``theta_fb_rad``, ``i_q_a`` or ``i_a_a``/``i_b_a``
+    (optionally ``iq_cmd_a``); or, for the sensorless route (docs/sensorless.md), open-loop
+    logs ``t_s``, ``theta_cmd_rad``, ``i_a_a``, ``i_b_a``, ``v_a_v``, ``v_b_v`` of the runs
+    the CLI's ``identify plan --sensorless`` lists. ``base``: the profile whose Km, Nr,
+    encoder and servo settings (sensorless: Km, Nr, R, L) apply. ``sensorless``: ``None``
+    takes the sensorless route when the first log has no ``theta_fb_rad``; ``True`` or
+    ``False`` forces a route. Returns ``(profile, report)``: ``base`` with the identified
+    values (named ``name``; sensorless: ``R`` trimmed too) and the fit report (estimates with
+    95 % half-widths, N·m, rad, kg·m²; warnings; ``route``; sensorless: ``resistance_ohm``
+    in Ω and ``current_offset_a``, the sampled currents' offset in A).
     """
     args = [_log_arg(log, i) for i, log in enumerate(logs)]
-    return _native.identify(args, base, [int(k) for k in orders], name)
+    return _native.identify(args, base, [int(k) for k in orders], name, sensorless)
 
 
 def resonance(profile: Profile) -> dict:

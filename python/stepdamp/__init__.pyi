@@ -44,6 +44,10 @@ def sweep(
     as_frame: Optional[bool] = None,
 ) -> Tuple[Any, SweepSummary]: ...
 def identify(
-    logs: Sequence[Any], base: Profile, orders: Sequence[int] = (1, 2, 4), name: Optional[str] = None
+    logs: Sequence[Any],
+    base: Profile,
+    orders: Sequence[int] = (1, 2, 4),
+    name: Optional[str] = None,
+    sensorless: Optional[bool] = None,
 ) -> Tuple[Profile, Dict[str, Any]]: ...
 def resonance(profile: Profile) -> Dict[str, Any]: ...

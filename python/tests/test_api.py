@@ -134,6 +134,26 @@ def test_identification_from_dataframes_equals_identification_from_files(tmp_pat
     assert d_found.detent == found.detent
 
 
+def test_sensorless_identification_from_open_loop_dataframes():
+    # The runs of `stepdamp identify plan --sensorless --motor patent-motor` (shortened):
+    # standstill 0.2 s, ramp 0.2 s, two speeds in both directions; no encoder column.
+    truth = Profile.preset("patent-motor")
+    logs = []
+    for i, w in enumerate([0.74, -0.74, 1.48, -1.48]):
+        log = stepdamp.simulate(truth, "open-loop", "off", w, 2.4, dwell_s=0.2, ramp_s=0.2,
+                                current_noise_a=0.005, seed=i + 1)
+        logs.append(log[["t_s", "theta_cmd_rad", "i_a_a", "i_b_a", "v_a_v", "v_b_v"]])
+    base = truth.copy()
+    base.detent = []
+    base.resistance_ohm = 0.99
+    found, report = stepdamp.identify(logs, base, orders=[1, 2, 4])
+    assert report["route"] == "sensorless"
+    assert abs(report["resistance_ohm"] / 0.9 - 1) < 1e-3
+    assert abs(found.resistance_ohm / 0.9 - 1) < 1e-3
+    a4 = [h for h in found.detent if h["order"] == 4][0]["amplitude_nm"]
+    assert abs(a4 - 0.02) < 0.001, report
+
+
 def test_rust_errors_become_exceptions_with_one_line_messages():
     p = Profile.preset("patent-motor")
     cases = [
