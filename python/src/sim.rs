@@ -102,19 +102,7 @@ pub fn simulate<'py>(
         })
         .map_err(err)?;
     let log = PyDict::new(py);
-    let names = [
-        "t_s",
-        "theta_cmd_rad",
-        "theta_fb_rad",
-        "omega_fb_rad_s",
-        "i_a_a",
-        "i_b_a",
-        "i_d_a",
-        "i_q_a",
-        "iq_cmd_a",
-        "v_a_v",
-        "v_b_v",
-    ];
+    let names = stepdamp_sim::runlog::LOG_COLUMNS;
     for (name, c) in names.into_iter().zip(cols) {
         column(py, &log, name, c)?;
     }

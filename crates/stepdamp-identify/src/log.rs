@@ -41,19 +41,7 @@ use stepdamp_out::input::{LineLimited, LineTooLong, printable};
 use stepdamp_profile::LogRow;
 
 /// The columns a run log must or may carry (docs/files.md, "Run log").
-pub const KNOWN_COLUMNS: [&str; 11] = [
-    "t_s",
-    "theta_cmd_rad",
-    "theta_fb_rad",
-    "omega_fb_rad_s",
-    "i_a_a",
-    "i_b_a",
-    "i_d_a",
-    "i_q_a",
-    "iq_cmd_a",
-    "v_a_v",
-    "v_b_v",
-];
+pub const KNOWN_COLUMNS: [&str; 11] = stepdamp_profile::runlog::LOG_COLUMNS;
 
 /// Longest line accepted, in bytes. A §6 row is about 200 bytes and a header of
 /// [`MAX_COLUMNS`] 60-character names 60 KiB; anything longer is not a run log, and the

@@ -3,7 +3,22 @@
 
 use serde::{Deserialize, Serialize};
 
-/// One row of a run log. Column names are the field names.
+/// The columns of a run log, in the order [`write_csv`] writes a [`LogRow`] (its field names).
+pub const LOG_COLUMNS: [&str; 11] = [
+    "t_s",
+    "theta_cmd_rad",
+    "theta_fb_rad",
+    "omega_fb_rad_s",
+    "i_a_a",
+    "i_b_a",
+    "i_d_a",
+    "i_q_a",
+    "iq_cmd_a",
+    "v_a_v",
+    "v_b_v",
+];
+
+/// One row of a run log. Column names are the field names ([`LOG_COLUMNS`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct LogRow {
     /// Time in s.
@@ -70,4 +85,17 @@ pub fn write_csv<W: std::io::Write, R: Serialize>(w: W, rows: &[R]) -> Result<()
     }
     wr.flush()?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn log_columns_are_the_header_the_writer_writes() {
+        let mut out = Vec::new();
+        write_csv(&mut out, &[LogRow::default()]).unwrap();
+        let text = String::from_utf8(out).unwrap();
+        assert_eq!(text.lines().next().unwrap(), LOG_COLUMNS.join(","));
+    }
 }

@@ -2,7 +2,7 @@
 //! made here from a simulated period.
 
 use crate::closed_loop::PeriodRecord;
-pub use stepdamp_profile::runlog::{LogRow, write_csv};
+pub use stepdamp_profile::runlog::{LOG_COLUMNS, LogRow, write_csv};
 
 /// A log row from a simulated period.
 pub trait FromRecord {
