@@ -32,24 +32,26 @@ pub(super) fn run_run_cmd(a: RunArgs, global: &Global) -> Result<()> {
     }
     let po = PlanOptions { current_noise_a: a.current_noise, seed: a.seed, ..plan_options(&orders, a.periods)? };
     let p = plan(&motor, &po)?;
-    // The logs are held in memory (and written as CSV): bound their size.
-    let rows = p.total_s() * p.profile.drive.pwm_hz;
+    in_run_dir(&a, p.total_s(), p.profile.drive.pwm_hz, || simulate_and_identify(&a, global, &motor, &orders, &po, &p))
+}
+
+/// The part of `identify run` both routes share: bound the logs a plan of `total_s` seconds
+/// at `pwm_hz` would hold in memory, check `--out`, then run `work` in the prepared output
+/// directory. If `work` fails or is interrupted, a directory it created is removed, and from
+/// an existing one what it added.
+pub(super) fn in_run_dir(a: &RunArgs, total_s: f64, pwm_hz: f64, work: impl FnOnce() -> Result<()>) -> Result<()> {
+    let rows = total_s * pwm_hz;
     if rows > MAX_SIMULATED_ROWS {
         bail!(
-            "--periods {}: the plan would log {:.0} s = {:.2e} rows at {} Hz; at most {MAX_SIMULATED_ROWS:.0e} rows are simulated (use fewer periods)",
-            a.periods,
-            p.total_s(),
-            rows,
-            p.profile.drive.pwm_hz
+            "--periods {}: the plan would log {total_s:.0} s = {rows:.2e} rows at {pwm_hz} Hz; at most {MAX_SIMULATED_ROWS:.0e} rows are simulated (use fewer periods)",
+            a.periods
         );
     }
     if a.out.exists() && !a.out.is_dir() {
         bail!("--out {}: exists and is not a directory", a.out.display());
     }
-    // Everything is checked: create the directory now. If the run fails or is interrupted,
-    // a directory it created is removed, and from an existing one what it added.
     let out_dir = stepdamp_out::OutputDir::prepare(&a.out)?;
-    let result = simulate_and_identify(&a, global, &motor, &orders, &po, &p);
+    let result = work();
     // A reader that closed standard output (`| head`) is not a failure of the run: keep
     // what was written.
     if result.as_ref().is_ok() || result.as_ref().is_err_and(crate::common::is_stdout_closed) {

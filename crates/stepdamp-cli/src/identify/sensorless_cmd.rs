@@ -141,23 +141,7 @@ pub(super) fn run_sensorless_run_cmd(a: &RunArgs, global: &Global, motor: &Profi
         );
     }
     let p = sensorless_plan(motor, &sensorless_options(orders, a.periods)?)?;
-    let rows = p.total_s() * motor.drive.pwm_hz;
-    if rows > MAX_SIMULATED_ROWS {
-        bail!(
-            "--periods {}: the plan would log {:.0} s = {rows:.2e} rows; at most {MAX_SIMULATED_ROWS:.0e} rows are simulated (use fewer periods)",
-            a.periods,
-            p.total_s()
-        );
-    }
-    if a.out.exists() && !a.out.is_dir() {
-        bail!("--out {}: exists and is not a directory", a.out.display());
-    }
-    let out_dir = stepdamp_out::OutputDir::prepare(&a.out)?;
-    let result = simulate_and_identify_sensorless(a, global, motor, orders, &p);
-    if result.as_ref().is_ok() || result.as_ref().is_err_and(crate::common::is_stdout_closed) {
-        out_dir.finish();
-    }
-    result
+    in_run_dir(a, p.total_s(), motor.drive.pwm_hz, || simulate_and_identify_sensorless(a, global, motor, orders, &p))
 }
 
 fn simulate_and_identify_sensorless(
