@@ -364,3 +364,75 @@ pub fn parse_m973(text: &str, axis: Option<char>, what: &str) -> Result<PrusaCor
     }
     Ok(out)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn item_lines(axis: char, dir: char, m4: &str) -> String {
+        (0..ITEMS)
+            .map(|n| format!("M971 {axis} {dir} I{n} M{} P0.00000\n", if n == 4 { m4 } else { "0.00000" }))
+            .collect()
+    }
+
+    #[test]
+    fn read_back_through_octoprint_with_crlf_echo_and_ok_lines() {
+        let mut t = String::from("Send: N5 M971 X F*33\r\necho:busy: processing\r\n");
+        for l in item_lines('X', 'F', "0.00877").lines() {
+            t += &format!("Recv: {l}\r\n");
+        }
+        t += "Recv: ok\r\nok\r\n";
+        let (c, kind) = parse_text(&t, None, "log").unwrap();
+        assert_eq!(kind, "Prusa M971 read-back (firmware >= 6.3.1), axis X, F only, used for both directions");
+        assert_eq!(c.forward.mag[4], 0.00877);
+        assert_eq!(c.backward, c.forward);
+        assert_eq!(c.firmware, Firmware::V6_3_1);
+        // Our own export with line numbers and checksums, as a host sends it, reads too.
+        let sent: String =
+            item_lines('Y', 'B', "-0.001").lines().enumerate().map(|(i, l)| format!("N{i} {l}*12\n")).collect();
+        let (c, _) = parse_text(&sent, None, "sent").unwrap();
+        assert_eq!(c.backward.mag[4], -0.001);
+    }
+
+    #[test]
+    fn read_back_problems_are_named_with_the_line() {
+        let both = item_lines('X', 'F', "0.1") + &item_lines('Y', 'F', "0.2");
+        assert!(parse_text(&both, None, "f").unwrap_err().to_string().contains("axes X and Y both present"));
+        assert_eq!(parse_text(&both, Some('Y'), "f").unwrap().0.forward.mag[4], 0.2);
+        let short: String =
+            item_lines('X', 'F', "0.1").lines().filter(|l| !l.contains(" I7 ")).map(|l| format!("{l}\n")).collect();
+        let e = parse_text(&short, None, "f").unwrap_err().to_string();
+        assert!(e.contains("direction F item 7 is missing"), "{e}");
+        for (bad, want) in [
+            ("M971 X F I3 M1e-5 P0", "upper-case parameter letter"),
+            ("M971 X F I17 M0 P0", "I17: the index must be 0..=16"),
+            ("M971 X F I3 M0", "all of I, M and P"),
+            ("M971 X Y F I3 M0 P0", "exactly one axis"),
+            ("M971 X F B I3 M0 P0", "exactly one direction"),
+            ("M971 X F I3 M0 P0 P1", "given twice"),
+            ("M971 X F I3 M. P0", "M.: not a finite number"),
+            ("M971 X F R I3 M0 P0", "parameter R"),
+        ] {
+            let e = parse_text(&format!("ok\n{bad}\r\n"), None, "rb").unwrap_err().to_string();
+            assert!(e.starts_with("rb:2: ") && e.contains(want), "{bad}: {e}");
+        }
+        assert!(parse_text("ok\nM9710 X F\n", None, "x").unwrap_err().to_string().contains("no M971 read-back"));
+    }
+
+    #[test]
+    fn the_6_2_print_and_m973_lines_read_in_the_6_2_scale() {
+        let print: String = ['F', 'B']
+            .iter()
+            .flat_map(|d| {
+                (0..ITEMS).map(move |n| {
+                    format!("Recv: X, {d}, {n}, {}, 0.30000\r\n", if n == 4 { "0.03509" } else { "0.00000" })
+                })
+            })
+            .collect();
+        let (c, kind) = parse_text(&print, None, "p").unwrap();
+        assert!(kind.contains("M972 print (firmware 6.2)"), "{kind}");
+        assert_eq!((c.firmware, c.forward.mag[4], c.backward.pha[3]), (Firmware::V6_2, 0.03509, 0.3));
+        let (c, _) = parse_text("M973 XF0,0 0,0 0,0 0,0 0.5,1\nM973 XB0,0\n", None, "m").unwrap();
+        assert_eq!((c.firmware, c.forward.mag[4], c.backward.mag[4]), (Firmware::V6_2, 0.5, 0.0));
+    }
+}
