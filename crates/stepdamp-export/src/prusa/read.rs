@@ -435,4 +435,23 @@ mod tests {
         let (c, _) = parse_text("M973 XF0,0 0,0 0,0 0,0 0.5,1\nM973 XB0,0\n", None, "m").unwrap();
         assert_eq!((c.firmware, c.forward.mag[4], c.backward.mag[4]), (Firmware::V6_2, 0.5, 0.0));
     }
+
+    const TOKENS: [&str; 24] = [
+        "M971", "M972", "M973 ", "M970", " X", " Y", " F", " B", " I", " M", " P", "Recv: ", "Send: ", "ok", "\r\n",
+        "\n", ", ", "0.00877", "-1.1", "16", "17", ";", "*", "\u{1b}",
+    ];
+
+    proptest::proptest! {
+        #[test]
+        fn any_mix_of_read_back_tokens_reads_or_fails_with_a_clean_message(
+            picks in proptest::collection::vec(0usize..TOKENS.len(), 0..400),
+            axis in 0usize..3,
+        ) {
+            let text: String = picks.iter().map(|&i| TOKENS[i]).collect();
+            match parse_bytes(text.as_bytes(), [None, Some('X'), Some('Y')][axis], "t", Firmware::V6_3_1) {
+                Ok((c, _)) => proptest::prop_assert!(c.forward.mag.iter().chain(&c.backward.pha).all(|v| v.is_finite())),
+                Err(e) => proptest::prop_assert!(!e.to_string().chars().any(char::is_control), "{}", e),
+            }
+        }
+    }
 }
