@@ -14,8 +14,9 @@
 //!   comments (`;` to the end of the line).
 //! - [`gcode_comment`]: [`line`] restricted to ASCII (printer firmware reads bytes).
 //! - [`c_comment`]: inside `/* … */` or `//`: additionally no `*/`, `/*`, `??` (trigraphs),
-//!   and no backslash at all (a `\` at the end of a `//` line continues the comment onto
-//!   the next line): ASCII only, others as `\xHH` / `\u{…}`.
+//!   and a backslash only to start an escape, never at the end (a `\` at the end of a `//`
+//!   line continues the comment onto the next line): ASCII only, others as `\xHH` /
+//!   `\u{…}`.
 //! - [`c_identifier`]: a C identifier (`[A-Za-z_][A-Za-z0-9_]*`) from any text.
 //! - [`xml_text`]: [`line`], then the five XML specials as entities.
 //! - [`csv_field`]: [`line`], then RFC 4180 quoting where needed, and a leading `'` before
