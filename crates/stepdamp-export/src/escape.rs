@@ -10,16 +10,16 @@
 //! shown as a visible escape (`\n`, `\x1b`, `\u{202e}`), and a backslash as `\\` so the
 //! escape is unambiguous. Format rules on top (see `docs/exporters.md#escaping`):
 //!
-//! - [`line`]: the terminal, Klipper config comments (`#` to the end of the line), G-code
+//! - [`line()`]: the terminal, Klipper config comments (`#` to the end of the line), G-code
 //!   comments (`;` to the end of the line).
-//! - [`gcode_comment`]: [`line`] restricted to ASCII (printer firmware reads bytes).
+//! - [`gcode_comment`]: [`line()`] restricted to ASCII (printer firmware reads bytes).
 //! - [`c_comment`]: inside `/* … */` or `//`: additionally no `*/`, `/*`, `??` (trigraphs),
 //!   and a backslash only to start an escape, never at the end (a `\` at the end of a `//`
 //!   line continues the comment onto the next line): ASCII only, others as `\xHH` /
 //!   `\u{…}`.
 //! - [`c_identifier`]: a C identifier (`[A-Za-z_][A-Za-z0-9_]*`) from any text.
-//! - [`xml_text`]: [`line`], then the five XML specials as entities.
-//! - [`csv_field`]: [`line`], then RFC 4180 quoting where needed, and a leading `'` before
+//! - [`xml_text`]: [`line()`], then the five XML specials as entities.
+//! - [`csv_field`]: [`line()`], then RFC 4180 quoting where needed, and a leading `'` before
 //!   `=`, `+`, `-`, `@` (spreadsheets run such a cell as a formula).
 
 use std::fmt::Write;
@@ -63,7 +63,7 @@ pub fn line(s: &str) -> String {
     out
 }
 
-/// Text for a G-code comment (after `;`): [`line`], ASCII only.
+/// Text for a G-code comment (after `;`): [`line()`], ASCII only.
 pub fn gcode_comment(s: &str) -> String {
     let mut out = String::with_capacity(s.len());
     for c in s.chars() {
@@ -125,7 +125,7 @@ pub fn c_identifier(s: &str) -> Option<String> {
     (!out.is_empty()).then_some(out)
 }
 
-/// Text for XML character data or an attribute value: [`line`], then `& < > " '` as
+/// Text for XML character data or an attribute value: [`line()`], then `& < > " '` as
 /// entities. (XML 1.0 cannot carry most control characters even as `&#…;`, hence the
 /// visible escapes.)
 pub fn xml_text(s: &str) -> String {
@@ -143,7 +143,7 @@ pub fn xml_text(s: &str) -> String {
     out
 }
 
-/// One CSV field (RFC 4180): [`line`]; a leading `=`, `+`, `-` or `@` gets a `'` before it;
+/// One CSV field (RFC 4180): [`line()`]; a leading `=`, `+`, `-` or `@` gets a `'` before it;
 /// quoted (with `"` doubled) when it holds `,`, `;`, `"` or starts or ends with a space.
 pub fn csv_field(s: &str) -> String {
     let mut t = line(s);
