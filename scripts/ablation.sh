@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Ablation of the estimated-angle compensation (README, "What the angle estimate buys"):
+# Ablation of the estimated-angle compensation (docs/beyond-the-patent.md, "What the angle estimate buys"):
 # the same three open-loop sweeps as scripts/figures.sh, once with the normal build and
 # once built with `--cfg stepdamp_ablate_load_angle` (a research build of the core, not a
 # Cargo feature, so no crate can switch it on in a production build), which keeps the

@@ -6,9 +6,15 @@
 A shell block is a fenced block tagged ``sh``, ``bash`` or ``shell``. Each one runs with
 ``bash -euo pipefail`` in its own fresh copy of the repository's tracked files (what a
 clean clone holds, in their working-tree state), with ``stepdamp`` on the PATH (the
-release binary, target/release/stepdamp unless --bin says otherwise) and CARGO_TARGET_DIR
-set to this checkout's target/, so a ``cargo`` line reuses the build instead of starting
-a cold one. A block must therefore create its own inputs.
+release binary, target/release/stepdamp unless --bin says otherwise) and the copy's
+``target`` a link to this checkout's, so a ``cargo`` line reuses the build instead of
+starting a cold one. A block must therefore create its own inputs.
+
+A ``console`` block is a transcript: each line starting with ``$ `` is a command (a line
+ending in a backslash continues it), the lines after it are what it prints. The commands
+run in order in one fresh copy, stdout and stderr together, and every line shown must
+appear in the command's output in the same order (lines may be left out, none changed):
+a figure quoted in a transcript cannot go stale.
 
 A block that is not meant to run carries a visible marker on the line right before its
 opening fence, naming the reason::
@@ -18,6 +24,10 @@ opening fence, naming the reason::
 The script lists every skipped block with its reason, and every block it ran with its
 time; it exits non-zero if any block fails (its output is shown) or if a marker names no
 reason. Blocks tagged otherwise (python, c, toml, text) are not shell and are not run.
+
+Before running anything it checks the links: every relative link of those files must name a
+file that exists and, with ``#anchor``, a heading it has; so must every ``docs/….md#anchor``
+that the code (crates, python, fuzz, firmware, examples, scripts) cites.
 """
 
 import argparse
@@ -31,6 +41,7 @@ import time
 from pathlib import Path
 
 SHELL_TAGS = {"sh", "bash", "shell"}
+CONSOLE_TAGS = {"console"}
 FENCE = re.compile(r"^(\s*)```\s*([A-Za-z0-9_+-]*)\s*$")
 MARKER = re.compile(r"^\s*<!--\s*not-run:(.*?)-->\s*$")
 TIMEOUT_S = 600
@@ -67,6 +78,56 @@ def blocks(path):
         yield start + 1, tag, "\n".join(body) + "\n", reason
 
 
+def slug(heading):
+    """GitHub's anchor of a heading: lower case, punctuation dropped, spaces to hyphens."""
+    text = re.sub(r"[`*_]", "", heading.strip().lower())
+    text = re.sub(r"[^\w\- ]", "", text)
+    return text.replace(" ", "-")
+
+
+def anchors(path):
+    out, fenced = set(), False
+    for line in path.read_text(encoding="utf-8").splitlines():
+        if re.match(r"^\s*```", line):
+            fenced = not fenced
+        elif not fenced and (m := re.match(r"^#{1,6}\s+(.*)$", line)):
+            out.add(slug(m.group(1)))
+    return out
+
+
+def check_links(root, files):
+    """Relative links of the markdown files, and `docs/*.md#anchor` citations in the code,
+    must name a file that exists and a heading it has. Returns the broken ones."""
+    broken = []
+    link = re.compile(r"\]\(([^)\s]+)\)")
+    for f in files:
+        for n, line in enumerate(f.read_text(encoding="utf-8").splitlines(), 1):
+            for target in link.findall(line):
+                if re.match(r"^[a-z]+:", target):
+                    continue
+                name, _, frag = target.partition("#")
+                dest = (f.parent / name).resolve() if name else f
+                if not dest.exists():
+                    broken.append(f"{f.relative_to(root)}:{n}: {target}: no such file")
+                elif frag and dest.suffix == ".md" and frag not in anchors(dest):
+                    broken.append(f"{f.relative_to(root)}:{n}: {target}: no such heading")
+    cited = re.compile(r"(docs/[\w./-]+\.md)#([\w-]+)")
+    code = subprocess.run(["git", "ls-files", "-z", "crates", "python", "fuzz", "firmware", "examples", "scripts"],
+                          cwd=root, check=True, capture_output=True).stdout.decode().split("\0")
+    for name in filter(None, code):
+        src = root / name
+        if src.suffix not in {".rs", ".py", ".pyi", ".sh", ".c", ".h", ".toml"} or not src.exists():
+            continue
+        for n, line in enumerate(src.read_text(encoding="utf-8", errors="replace").splitlines(), 1):
+            for doc, frag in cited.findall(line):
+                dest = root / doc
+                if not dest.exists():
+                    broken.append(f"{name}:{n}: {doc}#{frag}: no such file")
+                elif frag not in anchors(dest):
+                    broken.append(f"{name}:{n}: {doc}#{frag}: no such heading")
+    return broken
+
+
 def copy_tracked(root, dest):
     files = subprocess.run(["git", "ls-files", "-z"], cwd=root, check=True, capture_output=True).stdout
     for name in files.decode().split("\0"):
@@ -81,6 +142,62 @@ def copy_tracked(root, dest):
             os.symlink(os.readlink(src), target)
         else:
             shutil.copy2(src, target)
+
+
+def run(script, cwd, env):
+    """Runs a script with bash; returns (status, stdout and stderr)."""
+    try:
+        r = subprocess.run(
+            ["bash", "-euo", "pipefail", "-c", script],
+            cwd=cwd, env=env, stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=TIMEOUT_S,
+        )
+        return r.returncode, r.stdout
+    except subprocess.TimeoutExpired as e:
+        return "timeout", f"(no end after {TIMEOUT_S} s)\n{e.stdout or ''}"
+
+
+def transcript(text):
+    """The (command, expected lines) pairs of a console block."""
+    pairs, lines = [], text.splitlines()
+    i = 0
+    while i < len(lines):
+        if not lines[i].startswith("$ "):
+            raise ValueError(f"line {i + 1} of the block is output before any `$ ` command")
+        cmd = lines[i][2:]
+        while cmd.endswith("\\") and i + 1 < len(lines):
+            i += 1
+            cmd = cmd + "\n" + lines[i]
+        i += 1
+        expected = []
+        while i < len(lines) and not lines[i].startswith("$ "):
+            expected.append(lines[i].rstrip())
+            i += 1
+        pairs.append((cmd, expected))
+    return pairs
+
+
+def run_transcript(text, cwd, env):
+    """Runs a console block's commands; fails where a shown line is not printed, in order."""
+    try:
+        pairs = transcript(text)
+    except ValueError as e:
+        return "malformed", str(e)
+    log = []
+    for cmd, expected in pairs:
+        rc, out = run(cmd, cwd, env)
+        log.append(f"$ {cmd}\n{out}")
+        if rc != 0:
+            return rc, "".join(log)
+        got = [line.rstrip() for line in out.splitlines()]
+        k = 0
+        for want in expected:
+            while k < len(got) and got[k] != want:
+                k += 1
+            if k == len(got):
+                return "differs", "".join(log) + f"--- this line, shown in the doc, was not printed (in order):\n{want}\n"
+            k += 1
+    return 0, "".join(log)
 
 
 def main():
@@ -103,16 +220,19 @@ def main():
     todo, skipped = [], []
     for f in files:
         for line, tag, text, reason in blocks(f):
-            if tag not in SHELL_TAGS:
+            if tag not in SHELL_TAGS | CONSOLE_TAGS:
                 continue
             where = f"{f.relative_to(root)}:{line}"
-            (skipped if reason else todo).append((where, text, reason))
+            (skipped if reason else todo).append((where, tag, text, reason))
 
+    broken = check_links(root, files)
+    for b in broken:
+        print(f"broken link: {b}")
     print(f"{len(todo)} shell blocks to run, {len(skipped)} marked not-run:")
-    for where, _, reason in skipped:
+    for where, _, _, reason in skipped:
         print(f"  skipped {where}: {reason}")
     if args.list:
-        for where, text, _ in todo:
+        for where, _, text, _ in todo:
             print(f"\n--- {where}\n{text}", end="")
         return 0
 
@@ -124,21 +244,17 @@ def main():
         os.symlink(binary, bindir / "stepdamp")
         env = dict(os.environ)
         env["PATH"] = f"{bindir}{os.pathsep}{env.get('PATH', '')}"
-        env["CARGO_TARGET_DIR"] = str(root / "target")
+        env.pop("CARGO_TARGET_DIR", None)
         env["CARGO_TERM_COLOR"] = "never"
-        for n, (where, text, _) in enumerate(todo):
+        for n, (where, tag, text, _) in enumerate(todo):
             work = tmp / f"block-{n}"
             copy_tracked(root, work)
+            os.symlink(root / "target", work / "target")
             t0 = time.monotonic()
-            try:
-                r = subprocess.run(
-                    ["bash", "-euo", "pipefail", "-c", text],
-                    cwd=work, env=env, stdin=subprocess.DEVNULL,
-                    capture_output=True, text=True, timeout=TIMEOUT_S,
-                )
-                rc, output = r.returncode, r.stdout + r.stderr
-            except subprocess.TimeoutExpired as e:
-                rc, output = "timeout", f"(no end after {TIMEOUT_S} s)\n{e.stdout or ''}{e.stderr or ''}"
+            if tag in CONSOLE_TAGS:
+                rc, output = run_transcript(text, work, env)
+            else:
+                rc, output = run(text, work, env)
             dt = time.monotonic() - t0
             status = "ok" if rc == 0 else f"FAILED ({rc})"
             print(f"  {status:>12} {dt:6.1f} s  {where}", flush=True)
@@ -147,6 +263,8 @@ def main():
                 tail = "\n".join(str(output).splitlines()[-30:])
                 print(f"--- block\n{text}--- output (last 30 lines)\n{tail}\n---", flush=True)
             shutil.rmtree(work, ignore_errors=True)
+    if broken:
+        failed.append(f"{len(broken)} broken links")
     if failed:
         print("doc commands FAILED: " + ", ".join(failed), file=sys.stderr)
         return 1

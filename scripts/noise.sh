@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Current-sensor noise (README, "Assumptions and robustness"): open-loop sweeps of
+# Current-sensor noise (docs/beyond-the-patent.md, "Assumptions and robustness"): open-loop sweeps of
 # patent-motor with the patent's law and the estimated angle, at σ = 5 mA and 20 mA of
 # current-sensor noise, six seeds each. For each resonance it prints the peak-to-peak
 # velocity error near it (largest within ±10 % of the theoretical speed), per seed and as
