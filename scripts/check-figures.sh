@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
-# CI's figure check: regenerates what scripts/figures.sh publishes into a temporary directory
-# and fails if a text or CSV table, or the identified profile, differs from the committed one.
+# CI's figure check: regenerates what scripts/figures.sh and scripts/noise.sh publish into a
+# temporary directory and fails if a text or CSV table, or the identified profile, differs from
+# the committed one. (scripts/ablation.sh needs a second release build with another cfg, and
+# scripts/study.sh a Python environment and minutes of CPU: their outputs are not checked here.)
 #
 #   bash scripts/check-figures.sh
 #
@@ -14,6 +16,7 @@ cd "$root"
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 bash scripts/figures.sh "$tmp/generated" "$tmp/profiles" > "$tmp/figures.log"
+BIN="${STEPDAMP_BIN:-target/release/stepdamp}" OUT="$tmp/generated/noise.txt" bash scripts/noise.sh > /dev/null
 
 # Every table and summary figures.sh writes, and the profile it identifies.
 pairs=()
@@ -41,7 +44,7 @@ for f in "$tmp"/generated/*.png; do
     [[ -f "docs/generated/$(basename "$f")" ]] || { echo "FAILED: docs/generated/$(basename "$f") missing"; failed=1; }
 done
 if [[ $failed -ne 0 ]]; then
-    echo "docs figures differ from scripts/figures.sh: run it and commit the result, with the reason" >&2
+    echo "docs figures differ from what the scripts write: run them and commit the result, with the reason" >&2
     exit 1
 fi
-echo "docs figures: the committed tables match scripts/figures.sh"
+echo "docs figures: the committed tables match scripts/figures.sh and scripts/noise.sh"
