@@ -27,7 +27,8 @@ reason. Blocks tagged otherwise (python, c, toml, text) are not shell and are no
 
 Before running anything it checks the links: every relative link of those files must name a
 file that exists and, with ``#anchor``, a heading it has; so must every ``docs/….md#anchor``
-that the code (crates, python, fuzz, firmware, examples, scripts) cites.
+that the code (crates, python, fuzz, firmware, examples, scripts) cites. A list of the run
+log's columns after the name ``LOG_COLUMNS`` must equal that constant.
 """
 
 import argparse
@@ -128,6 +129,24 @@ def check_links(root, files):
     return broken
 
 
+def check_log_columns(root, files):
+    """A doc that lists the run log's columns after naming `LOG_COLUMNS` must list exactly the
+    columns of stepdamp_profile::runlog::LOG_COLUMNS, in order. Returns the mismatches."""
+    src = (root / "crates/stepdamp-profile/src/runlog.rs").read_text(encoding="utf-8")
+    m = re.search(r"LOG_COLUMNS: \[&str; \d+\] = \[(.*?)\];", src, re.S)
+    if not m:
+        return ["crates/stepdamp-profile/src/runlog.rs: LOG_COLUMNS not found"]
+    want = re.findall(r'"(\w+)"', m.group(1))
+    bad = []
+    for f in files:
+        text = " ".join(f.read_text(encoding="utf-8").split())
+        for listed in re.findall(r"LOG_COLUMNS`:\s*`([^`]*)`", text):
+            got = [c.strip() for c in listed.split(",")]
+            if got != want:
+                bad.append(f"{f.relative_to(root)}: run-log columns {got} != LOG_COLUMNS {want}")
+    return bad
+
+
 def copy_tracked(root, dest):
     files = subprocess.run(["git", "ls-files", "-z"], cwd=root, check=True, capture_output=True).stdout
     for name in files.decode().split("\0"):
@@ -225,9 +244,9 @@ def main():
             where = f"{f.relative_to(root)}:{line}"
             (skipped if reason else todo).append((where, tag, text, reason))
 
-    broken = check_links(root, files)
+    broken = check_links(root, files) + check_log_columns(root, files)
     for b in broken:
-        print(f"broken link: {b}")
+        print(f"docs check: {b}")
     print(f"{len(todo)} shell blocks to run, {len(skipped)} marked not-run:")
     for where, _, _, reason in skipped:
         print(f"  skipped {where}: {reason}")
@@ -264,7 +283,7 @@ def main():
                 print(f"--- block\n{text}--- output (last 30 lines)\n{tail}\n---", flush=True)
             shutil.rmtree(work, ignore_errors=True)
     if broken:
-        failed.append(f"{len(broken)} broken links")
+        failed.append(f"{len(broken)} broken links or lists")
     if failed:
         print("doc commands FAILED: " + ", ".join(failed), file=sys.stderr)
         return 1
