@@ -28,7 +28,8 @@ reason. Blocks tagged otherwise (python, c, toml, text) are not shell and are no
 Before running anything it checks the links: every relative link of those files must name a
 file that exists and, with ``#anchor``, a heading it has; so must every ``docs/….md#anchor``
 that the code (crates, python, fuzz, firmware, examples, scripts) cites. A list of the run
-log's columns after the name ``LOG_COLUMNS`` must equal that constant.
+log's columns after the name ``LOG_COLUMNS`` must equal that constant, and the instructions
+per step in docs/embedded.md the counts in firmware/qemu-m4/instructions.txt.
 """
 
 import argparse
@@ -147,6 +148,38 @@ def check_log_columns(root, files):
     return bad
 
 
+# Rows of docs/embedded.md's table and the keys of firmware/qemu-m4/instructions.txt they show.
+INSTRUCTION_ROWS = {
+    "open loop, patent law": "open_loop",
+    "servo": "servo",
+    "open loop, estimated angle": "estimated_angle",
+}
+
+
+def check_instruction_counts(root):
+    """docs/embedded.md's instructions per step must be the counts CI's budget check compares
+    against (firmware/qemu-m4/instructions.txt). Returns the mismatches."""
+    doc, counts = root / "docs/embedded.md", root / "firmware/qemu-m4/instructions.txt"
+    if not doc.exists() or not counts.exists():
+        return []
+    want = dict(
+        line.split("=", 1) for line in counts.read_text().splitlines() if "=" in line and not line.startswith("#")
+    )
+    bad, seen = [], set()
+    for line in doc.read_text(encoding="utf-8").splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) >= 2 and cells[0] in INSTRUCTION_ROWS:
+            key = INSTRUCTION_ROWS[cells[0]]
+            seen.add(key)
+            shown = cells[1].replace(",", "")
+            if shown != want.get(key, "").strip():
+                bad.append(f"docs/embedded.md: {cells[0]}: {cells[1]} instructions, {counts.relative_to(root)} says {want.get(key)}")
+    for row, key in INSTRUCTION_ROWS.items():
+        if key not in seen:
+            bad.append(f"docs/embedded.md: no table row '{row}' for {key}")
+    return bad
+
+
 def copy_tracked(root, dest):
     files = subprocess.run(["git", "ls-files", "-z"], cwd=root, check=True, capture_output=True).stdout
     for name in files.decode().split("\0"):
@@ -244,7 +277,7 @@ def main():
             where = f"{f.relative_to(root)}:{line}"
             (skipped if reason else todo).append((where, tag, text, reason))
 
-    broken = check_links(root, files) + check_log_columns(root, files)
+    broken = check_links(root, files) + check_log_columns(root, files) + check_instruction_counts(root)
     for b in broken:
         print(f"docs check: {b}")
     print(f"{len(todo)} shell blocks to run, {len(skipped)} marked not-run:")
