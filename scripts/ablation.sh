@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
-# Ablation of the estimated-angle compensation (README, "What the angle estimate buys"):
+# Ablation of the estimated-angle compensation (docs/beyond-the-patent.md, "What the angle estimate buys"):
 # the same three open-loop sweeps as scripts/figures.sh, once with the normal build and
 # once built with `--cfg stepdamp_ablate_load_angle` (a research build of the core, not a
 # Cargo feature, so no crate can switch it on in a production build), which keeps the
 # current-loop inverse, the R̂ trim and the K̂m correction but evaluates the compensation
-# at δ̂ = 0 (θ_cmd). Writes docs/ablation.txt. The ablated build goes to its own target
+# at δ̂ = 0 (θ_cmd). Writes docs/generated/ablation.txt. The ablated build goes to its own target
 # directory (its RUSTFLAGS differ, so it must not share the normal build's artefacts).
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
@@ -23,5 +23,5 @@ trap 'rm -rf "$tmp"' EXIT
                 grep -v -e '^wrote ' -e ' simulated in '
         done
     done
-} > docs/ablation.txt
-echo "wrote docs/ablation.txt"
+} > docs/generated/ablation.txt
+echo "wrote docs/generated/ablation.txt"

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # CPU time of the README sweep, working tree against an earlier commit, measured side by
-# side in one run (issue 17):
+# side in one run:
 #
 #   bash scripts/bench-sweep.sh <earlier-commit> [pairs]      (pairs: default 5, at least 1)
 #

@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
-# Current-sensor noise (README, "Assumptions and robustness"): open-loop sweeps of
+# Current-sensor noise (docs/beyond-the-patent.md, "Assumptions and robustness"): open-loop sweeps of
 # patent-motor with the patent's law and the estimated angle, at σ = 5 mA and 20 mA of
 # current-sensor noise, six seeds each. For each resonance it prints the peak-to-peak
 # velocity error near it (largest within ±10 % of the theoretical speed), per seed and as
-# the RMS over the seeds. Writes docs/noise.txt.
+# the RMS over the seeds. Writes docs/generated/noise.txt.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 # BIN=path runs another build (e.g. an older commit's) instead of building this tree.
@@ -33,4 +33,4 @@ speeds=$($bin resonance --motor patent-motor | sed -n 's/^resonance k=\([0-9]*\)
                     }
                 }'
     done
-} | tee "${OUT:-docs/noise.txt}"
+} | tee "${OUT:-docs/generated/noise.txt}"

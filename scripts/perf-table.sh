@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# README's performance table, regenerated (issue 17): prints the markdown table of the
-# "Performance" section from measurements made now, on this machine.
+# docs/performance.md's table, regenerated: prints the markdown table of the
+# table from measurements made now, on this machine.
 #
 #   bash scripts/perf-table.sh [earlier-commit] [pairs]     (defaults: 08f3470, 5 pairs)
 #

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The tolerance study of docs/python.md: 1000 variants of patent-motor on a Dask
 # LocalCluster (python/examples/patent-motor-study.toml), its CDF plot as
-# docs/study-cdf.png, the Parquet table and summary under out/study/.
+# docs/generated/study-cdf.png, the Parquet table and summary under out/study/.
 #
 #   bash scripts/study.sh                      # LocalCluster, 2 worker processes
 #   SCHEDULER=tcp://HOST:8786 bash scripts/study.sh   # an existing Dask cluster
@@ -41,4 +41,4 @@ def main():
 if __name__ == "__main__":
     main()
 PY
-"$venv/bin/python" "$driver" "$spec" "$out" "$root/docs/study-cdf.png" "${SCHEDULER:-}" "${WORKERS:-2}"
+"$venv/bin/python" "$driver" "$spec" "$out" "$root/docs/generated/study-cdf.png" "${SCHEDULER:-}" "${WORKERS:-2}"

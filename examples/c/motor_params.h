@@ -2,8 +2,8 @@
  * Profile "patent-motor" from patent-motor. SI units: N·m/A, Ω, H, N·m, V, Hz, A, rad.
  * Open loop with the patent's compensation; servo gains from a 40 Hz position loop
  * on J = 0.00004 kg·m² (velocity filter 250 Hz). */
-#ifndef MOTOR_H
-#define MOTOR_H
+#ifndef STEPDAMP_MOTOR_H
+#define STEPDAMP_MOTOR_H
 
 #include "stepdamp.h"
 
@@ -44,4 +44,4 @@ static const sd_params motor_PARAMS = {
     .compensation = SD_COMPENSATION_PATENT,
 };
 
-#endif /* MOTOR_H */
+#endif /* STEPDAMP_MOTOR_H */

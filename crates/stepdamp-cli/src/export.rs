@@ -6,7 +6,7 @@ use crate::common::{load_motor, write_atomic};
 use anyhow::{Result, bail};
 use std::path::{Path, PathBuf};
 use stepdamp_core::{Compensation, Mode};
-use stepdamp_export::{Correction, RunCurrent, c_header, predict, prusa, simplefoc, tmc};
+use stepdamp_export::{Correction, RunCurrent, c_header, escape, predict, prusa, simplefoc, tmc};
 
 /// Target format.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -15,12 +15,24 @@ pub enum Format {
     /// firmware >= 6.3.1 (M973 with --firmware 6.2) in FILE, and the binary correction files
     /// FILE.fwd.bin and FILE.bck.bin.
     Prusa,
-    /// A Klipper [tmc5160 …] block with a Trinamic microstep table.
+    /// A Klipper [tmc2130|tmc2240|tmc5160 …] block with a Trinamic microstep table.
     KlipperTmc,
-    /// A C++ header for SimpleFOC's HybridStepperMotor feed_forward_current.q.
+    /// A C++ header for SimpleFOC (>= 2.4.0) feed_forward_current.q.
     Simplefoc,
     /// An sd_params initializer for stepdamp's C library (stepdamp.h).
     CHeader,
+}
+
+impl Format {
+    /// The subcommand's name as typed.
+    fn name(self) -> &'static str {
+        match self {
+            Format::Prusa => "prusa",
+            Format::KlipperTmc => "klipper-tmc",
+            Format::Simplefoc => "simplefoc",
+            Format::CHeader => "c-header",
+        }
+    }
 }
 
 /// Source format of `stepdamp import`.
@@ -52,9 +64,10 @@ impl From<PrusaFirmware> for prusa::Firmware {
     }
 }
 
-/// The run current, peak or RMS: exactly one of the two.
+/// The run current, peak or RMS: at most one of the two (clap's group); the formats that
+/// use a current require one ([`CurrentArgs::run_current`]), `export simplefoc` refuses both.
 #[derive(clap::Args, Debug)]
-#[group(required = true, multiple = false)]
+#[group(required = false, multiple = false)]
 pub struct CurrentArgs {
     /// Run current as the PEAK of the current vector, A: the amplitude of each phase's sine
     /// wave, the unit of the profile's holding_current_a. For a drive's RMS setting (Klipper
@@ -68,12 +81,19 @@ pub struct CurrentArgs {
 }
 
 impl CurrentArgs {
-    /// The run current given.
+    /// Whether either option was given.
+    pub fn given(&self) -> bool {
+        self.current.is_some() || self.current_rms.is_some()
+    }
+
+    /// The run current given; an error when neither option is.
     pub fn run_current(&self) -> Result<RunCurrent> {
         Ok(match (self.current, self.current_rms) {
             (Some(p), None) => RunCurrent::from_peak(p)?,
             (None, Some(r)) => RunCurrent::from_rms(r)?,
-            _ => bail!("give exactly one of --current (peak) and --current-rms"),
+            _ => bail!(
+                "the run current is needed: --current A (peak, the current vector) or --current-rms A (RMS per phase)"
+            ),
         })
     }
 }
@@ -87,7 +107,7 @@ pub struct ExportArgs {
     /// Motor profile (identified TOML) or preset.
     #[arg(long)]
     pub motor: String,
-    /// The run current the correction is computed for.
+    /// The run current the correction is computed for (prusa, klipper-tmc, c-header).
     #[command(flatten)]
     pub current: CurrentArgs,
     /// Prusa firmware the G-code is for (prusa only; default 6.3.1, which covers 6.3.x).
@@ -96,12 +116,25 @@ pub struct ExportArgs {
     /// Output file.
     #[arg(long)]
     pub out: PathBuf,
-    /// Prusa axis (X or Y) / Klipper section (e.g. "tmc5160 stepper_x").
+    /// Prusa axis (X or Y) / Klipper section: tmc2130, tmc2240 or tmc5160 and the stepper
+    /// (e.g. "tmc5160 stepper_x"; the other drivers have no wave table).
     #[arg(long)]
     pub axis: Option<String>,
-    /// Simulated time per prediction run, s (0 skips the prediction).
+    /// Simulated time per prediction run, s (0 skips the prediction and its check: nothing
+    /// is claimed).
     #[arg(long, default_value_t = 1.0)]
     pub duration: f64,
+    /// Write the files even when the prediction shows the correction makes the simulated
+    /// motor worse, or not measurably better (by 1 dB at some resonance).
+    #[arg(long)]
+    pub force: bool,
+    /// c-header: the stem of the C names (`<NAME>_PARAMS`, guard `STEPDAMP_<NAME>_H`);
+    /// default: the --out file name up to its first dot.
+    #[arg(long)]
+    pub name: Option<String>,
+    /// simplefoc: the loopFOC rate in Hz the prediction models (default 10000).
+    #[arg(long)]
+    pub loop_hz: Option<f64>,
 }
 
 /// Arguments of `stepdamp import prusa`.
@@ -137,81 +170,113 @@ fn sibling(out: &Path, suffix: &str) -> PathBuf {
     PathBuf::from(s)
 }
 
-/// Runs `stepdamp export`.
+/// Runs `stepdamp export`: builds the files, predicts what the correction does (unless
+/// `--duration 0`), refuses a correction the simulation shows worse or not measurably
+/// better (unless `--force`), then writes the files.
 pub fn run_export(a: ExportArgs, _g: &Global) -> Result<()> {
     let p = load_motor(&a.motor)?;
     if !(a.duration.is_finite() && (a.duration == 0.0 || (0.5..=100.0).contains(&a.duration))) {
         bail!("--duration {}: 0 (no prediction) or 0.5..=100 s", a.duration);
     }
-    let current = a.current.run_current()?;
-    if a.firmware.is_some() && a.format != Format::Prusa {
-        bail!("--firmware: only for export prusa");
+    refuse_unused_options(&a)?;
+    // SimpleFOC's feed-forward does not depend on the run current (refused above).
+    let current = if a.format == Format::Simplefoc { None } else { Some(a.current.run_current()?) };
+    if let Some(i) = current {
+        outln!("run current {i}");
     }
-    let c = Correction::from_profile(&p, Some(current.peak_a()))?;
-    outln!("run current {current}");
+    let c = Correction::from_profile(&p, current.map(|i| i.peak_a()))?;
     // The simulation runs at the exported current.
     let scaled = p.edited(&a.motor, |d| d.drive.holding_current_a = c.holding_current_a)?;
+    let mut files: Vec<(PathBuf, Vec<u8>)> = Vec::new();
+    let mut wrote = String::new();
     let (comp, table) = match a.format {
         Format::Prusa => {
             let axis = match a.axis.as_deref() {
                 None | Some("X") | Some("x") => 'X',
                 Some("Y") | Some("y") => 'Y',
-                Some(o) => bail!("--axis {o:?}: Prusa phase stepping has axes X and Y"),
+                Some(o) => bail!("--axis {}: Prusa phase stepping has axes X and Y", escape::line(o)),
             };
-            let table = export_prusa(&a, &p.name, &c, current, axis)?;
+            let Some(run) = current else { bail!("export prusa needs the run current") };
+            let (mut f, table, how) = prusa_files(&a, &p.name, &c, run, axis)?;
+            files.append(&mut f);
+            wrote = how;
             (Compensation::Table, Some(table))
         }
         Format::KlipperTmc => {
             let e = tmc::export(&c)?;
             let section = a.axis.clone().unwrap_or_else(|| "tmc5160 stepper_x".to_string());
-            write_atomic(&a.out, tmc::klipper_block(&e, &section, &p.name).as_bytes())?;
+            files.push((a.out.clone(), tmc::klipper_block(&e, &section, &p.name)?.into_bytes()));
             out!("{e}");
-            outln!("wrote {} ([{section}])", a.out.display());
+            wrote = format!("([{section}])");
             (Compensation::Table, Some(tmc::table(&e.registers)))
         }
         Format::Simplefoc => {
-            write_atomic(&a.out, simplefoc::header(&c, "stepdamp_q_current").as_bytes())?;
-            outln!("wrote {}", a.out.display());
+            files.push((a.out.clone(), simplefoc::header(&c, "stepdamp_q_current")?.into_bytes()));
             (Compensation::Patent, None)
         }
         Format::CHeader => {
-            write_atomic(&a.out, c_header::header(&scaled, &a.motor, "motor").as_bytes())?;
-            outln!("wrote {}", a.out.display());
+            let ident = c_header::ident_for(&a.out, a.name.as_deref())?;
+            files.push((a.out.clone(), c_header::header(&scaled, &p.name, &a.motor, &ident)?.into_bytes()));
+            wrote = format!("(sd_params {ident}_PARAMS)");
             (Compensation::Patent, None)
         }
     };
     if a.duration > 0.0 {
-        // SimpleFOC runs on its sensor: servo mode; the others microstep in open loop.
-        let (mode, name) = match (a.format, comp) {
-            (Format::Simplefoc, _) => (Mode::Servo, "servo, patent q-current feed-forward"),
-            (_, Compensation::Table) => (Mode::OpenLoop, "open loop, table replay"),
-            _ => (Mode::OpenLoop, "open loop, patent q-current feed-forward"),
-        };
-        let off = predict::config_in(&scaled, mode, Compensation::Off, None)?;
-        let cfg = predict::config_in(&scaled, mode, comp, table.as_ref())?;
-        let mut comps = vec![(name.to_string(), cfg)];
-        if a.format == Format::KlipperTmc {
-            // What the coverage report predicts: the continuous angle law carrying exactly
-            // the part of the model the table can hold (the table's rounding aside).
-            let covered = predict::config(&tmc::covered_profile(&scaled)?, Compensation::Angle, None)?;
-            comps.push(("open loop, angle law on the covered part only".to_string(), covered));
+        let verdict = predict_export(&a, &scaled, comp, table.as_ref())?;
+        if verdict != predict::Verdict::Better {
+            if !a.force {
+                bail!("{verdict}; nothing written (--force writes it anyway)");
+            }
+            outln!("{verdict}; writing it anyway (--force)");
         }
-        for p in predict::predict_against(&scaled, off, &comps, a.duration)? {
-            out!("{p}");
+    }
+    for (path, bytes) in &files {
+        write_atomic(path, bytes)?;
+    }
+    outln!("wrote {}{}", a.out.display(), if wrote.is_empty() { String::new() } else { format!(" {wrote}") });
+    Ok(())
+}
+
+/// Options that would do nothing for the chosen format are refused, never ignored.
+fn refuse_unused_options(a: &ExportArgs) -> Result<()> {
+    let unused =
+        |opt: &str, why: &str| -> Result<()> { bail!("{opt} does nothing for export {}: {why}", a.format.name()) };
+    match a.format {
+        Format::Simplefoc => {
+            if a.current.given() {
+                unused("--current", "the q-current feed-forward A_k/Km does not depend on the run current")?;
+            }
+            if a.axis.is_some() {
+                unused("--axis", "the header is for the motor object you call it with")?;
+            }
         }
+        Format::CHeader if a.axis.is_some() => unused("--axis", "the header's names come from --out or --name")?,
+        _ => {}
+    }
+    if a.name.is_some() && a.format != Format::CHeader {
+        unused("--name", "it names the C header's identifiers (export c-header)")?;
+    }
+    if a.firmware.is_some() && a.format != Format::Prusa {
+        unused("--firmware", "it is the Prusa firmware the G-code is for (export prusa)")?;
+    }
+    if a.loop_hz.is_some() && a.format != Format::Simplefoc {
+        unused("--loop-hz", "it is SimpleFOC's loopFOC rate (export simplefoc)")?;
     }
     Ok(())
 }
 
-/// Writes the Prusa G-code and files; returns the table the written G-code makes, read back
-/// from the text itself, for the prediction.
-fn export_prusa(
+/// A file to write: its path and bytes.
+type OutFile = (PathBuf, Vec<u8>);
+
+/// The Prusa G-code and files, what the "wrote" line says about them, and the table the
+/// written G-code makes (read back from the text itself) for the prediction.
+fn prusa_files(
     a: &ExportArgs,
     name: &str,
     c: &Correction,
     current: RunCurrent,
     axis: char,
-) -> Result<stepdamp_core::CorrectionTable> {
+) -> Result<(Vec<OutFile>, stepdamp_core::CorrectionTable, String)> {
     let fw: prusa::Firmware = a.firmware.unwrap_or(PrusaFirmware::V6_3_1).into();
     let fitted = prusa::fit(c, fw)?;
     let text = prusa::gcode::write(&fitted, axis, &prusa::gcode::Header { profile: name, current })?;
@@ -220,17 +285,74 @@ fn export_prusa(
         bail!("internal: the exported G-code reads back to another correction");
     }
     out!("{fitted}");
-    write_atomic(&a.out, text.as_bytes())?;
     let (f, b) = (sibling(&a.out, ".fwd.bin"), sibling(&a.out, ".bck.bin"));
-    write_atomic(&f, &prusa::encode_file(&written.forward))?;
-    write_atomic(&b, &prusa::encode_file(&written.backward))?;
     let how = match fw {
         prusa::Firmware::V6_3_1 => format!("M970 {axis}0, M971 {axis} F|B x17, M970 {axis}1"),
         prusa::Firmware::V6_2 => format!("M973 {axis}F/{axis}B"),
     };
-    outln!("wrote {} ({how}, firmware {}), {} and {}", a.out.display(), fw.label(), f.display(), b.display());
-    Ok(written.table())
+    let wrote = format!("({how}, firmware {}), {} and {}", fw.label(), f.display(), b.display());
+    let files = vec![
+        (a.out.clone(), text.into_bytes()),
+        (f, prusa::encode_file(&written.forward).to_vec()),
+        (b, prusa::encode_file(&written.backward).to_vec()),
+    ];
+    Ok((files, written.table(), wrote))
 }
+
+/// Prints the prediction of the exported correction and returns the verdict on the first
+/// (the one that models what is exported).
+fn predict_export(
+    a: &ExportArgs,
+    scaled: &stepdamp_sim::Profile,
+    comp: Compensation,
+    table: Option<&stepdamp_core::CorrectionTable>,
+) -> Result<predict::Verdict> {
+    // SimpleFOC runs on its sensor: servo mode; the others microstep in open loop.
+    let mode = if a.format == Format::Simplefoc { Mode::Servo } else { Mode::OpenLoop };
+    let off = predict::config_in(scaled, mode, Compensation::Off, None)?;
+    let mut comps: Vec<(String, predict::ConfigAt<'_>)> = Vec::new();
+    match (a.format, comp) {
+        (Format::Simplefoc, _) => {
+            let timing = simplefoc::LoopTiming {
+                loop_hz: a.loop_hz.unwrap_or(DEFAULT_LOOP_HZ),
+                order: simplefoc::CallOrder::Documented,
+            };
+            timing.check()?;
+            let name = format!(
+                "servo, SimpleFOC loop at {} Hz with the header's call order, q-current feed-forward",
+                timing.loop_hz
+            );
+            comps.push((
+                name,
+                Box::new(move |speed| {
+                    predict::config_in(&timing.as_applied(scaled, speed)?, Mode::Servo, Compensation::Patent, None)
+                }),
+            ));
+        }
+        (_, Compensation::Table) => {
+            let cfg = predict::config_in(scaled, mode, comp, table)?;
+            comps.push(("open loop, table replay".into(), Box::new(move |_| Ok(cfg))));
+        }
+        _ => {
+            let cfg = predict::config_in(scaled, mode, comp, table)?;
+            comps.push(("open loop, patent q-current feed-forward".into(), Box::new(move |_| Ok(cfg))));
+        }
+    }
+    if a.format == Format::KlipperTmc {
+        // What the coverage report predicts: the continuous angle law carrying exactly
+        // the part of the model the table can hold (the table's rounding aside).
+        let covered = predict::config(&tmc::covered_profile(scaled)?, Compensation::Angle, None)?;
+        comps.push(("open loop, angle law on the covered part only".to_string(), Box::new(move |_| Ok(covered))));
+    }
+    let pr = predict::predict_at(scaled, off, &comps, a.duration)?;
+    for p in &pr {
+        out!("{p}");
+    }
+    Ok(pr[0].verdict())
+}
+
+/// SimpleFOC loop rate the prediction assumes without `--loop-hz`, Hz.
+const DEFAULT_LOOP_HZ: f64 = 10_000.0;
 
 /// Runs `stepdamp import prusa`.
 pub fn run_import(a: ImportArgs, _g: &Global) -> Result<()> {

@@ -20,6 +20,14 @@ pub fn register_font() {
     });
 }
 
+/// Text from outside (a profile's name, a log's path) as drawn: one printable line
+/// ([`stepdamp_export::escape::line`]). The SVG backend (plotters-svg 0.3.7,
+/// `escape_and_push`) writes `& < > " '` as entities itself; XML 1.0 cannot carry control
+/// characters at all, so they are shown escaped. The hostile-name test parses the SVG.
+fn shown(s: &str) -> String {
+    stepdamp_export::escape::line(s)
+}
+
 /// A vertical marker: x position and label.
 pub struct Marker {
     /// Speed in rad/s.
@@ -97,7 +105,7 @@ impl Figure for ValidationFigure<'_> {
         let top = positive().fold(1e-6, f64::max) * 2.0;
         let floor = positive().fold(top, f64::min).max(top * 1e-5) / 2.0;
         let mut chart = ChartBuilder::on(root)
-            .caption(self.title, ("sans-serif", 20))
+            .caption(shown(self.title), ("sans-serif", 20))
             .margin(14)
             .x_label_area_size(40)
             .y_label_area_size(80)
@@ -125,7 +133,7 @@ impl Figure for ValidationFigure<'_> {
                     Rectangle::new([(k + x_off, floor), (k + x_off + width * 0.9, y)], color.filled())
                 }))
                 .map_err(err)?
-                .label(format!("{}: explains {:.1} %", run.source, 100.0 * run.explained_share))
+                .label(format!("{}: explains {:.1} %", shown(&run.source), 100.0 * run.explained_share))
                 .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 14, y + 5)], color.filled()));
         }
         legend(&mut chart)?;
@@ -144,7 +152,7 @@ where
 {
     let err = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow!("plot: {e}");
     root.fill(&WHITE).map_err(err)?;
-    let root = root.titled(title, ("sans-serif", 22)).map_err(err)?;
+    let root = root.titled(&shown(title), ("sans-serif", 22)).map_err(err)?;
     let (modes, comps) = stepdamp_sim::summary::modes_and_compensations(rows);
     let panels = root.split_evenly((modes.len().max(1), 1));
     let (x0, x1) = rows
@@ -181,7 +189,7 @@ where
                 .draw_series(DashedLineSeries::new(vec![(m.x, y0), (m.x, y1)], 6, 4, BLACK.mix(0.5).stroke_width(1)))
                 .map_err(err)?;
             chart
-                .draw_series(std::iter::once(Text::new(m.label.clone(), (m.x, y1 / 1.6), ("sans-serif", 13))))
+                .draw_series(std::iter::once(Text::new(shown(&m.label), (m.x, y1 / 1.6), ("sans-serif", 13))))
                 .map_err(err)?;
         }
         for (ci, comp) in comps.iter().enumerate() {

@@ -248,9 +248,12 @@ fn current_is_the_peak_and_current_rms_the_rms_root_two_apart() {
     };
     let ratio = mag(&peak) / mag(&r2);
     assert!((ratio - std::f64::consts::SQRT_2).abs() < 2e-4, "{ratio}");
-    // Exactly one of the two.
-    let (o, _) = run(&[], "none.gcode");
-    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    // Exactly one of the two: neither is refused (export simplefoc alone takes none: its
+    // feed-forward does not depend on the current), both is a usage error.
+    let (o, none) = run(&[], "none.gcode");
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(text(&o).contains("the run current is needed: --current A (peak"), "{}", text(&o));
+    assert!(!none.exists());
     let (o, _) = run(&["--current", "1", "--current-rms", "1"], "both.gcode");
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));
     let help = text(&stepdamp(&["export", "--help"]));

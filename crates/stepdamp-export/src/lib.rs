@@ -7,9 +7,11 @@
 //!   ≥ 6.3.1 (`M973` for 6.2), the binary correction files, the `M971` read-back and the 6.2
 //!   `M972` print; replayed as the firmware's 1024-tick current table.
 //! - [`tmc`]: the Trinamic microstep table (`MSLUT0..7`, `MSLUTSEL`, `MSLUTSTART`) as a
-//!   Klipper `[tmc5160 …]` block, with a coverage report (a mirrored quarter wave can carry
+//!   Klipper `[tmc5160 …]` block (sections `tmc2130`, `tmc2240`, `tmc5160` only), with a coverage report (a mirrored quarter wave can carry
 //!   only the sine part of orders 4, 8, …).
 //! - [`simplefoc`]: a C++ header for `HybridStepperMotor::feed_forward_current.q`.
+//! - [`escape`]: the one escaping module every writer uses for profile text (names in
+//!   comments, C identifiers, SVG, CSV, the terminal).
 //! - [`predict`]: the peak-to-peak velocity error at each resonance with and without a
 //!   correction, from short simulator runs of the `table` (or any) compensation.
 //!
@@ -20,6 +22,7 @@
 //! winding **b** on coil **A** (the sine coil). See `docs/exporters.md`.
 
 pub mod c_header;
+pub mod escape;
 pub mod model;
 pub mod predict;
 pub mod prusa;

@@ -1,5 +1,7 @@
-//! Trinamic microstep table (TMC2130/2160/2240/5130/5160), written as a Klipper
-//! `[tmc5160 stepper_x]`-style block (`driver_MSLUT0` … `driver_START_SIN90`).
+//! Trinamic microstep table, written as a Klipper `[tmc5160 stepper_x]`-style block
+//! (`driver_MSLUT0` … `driver_START_SIN90`). Klipper writes the wave table only for the
+//! sections in [`WAVE_TABLE_DRIVERS`] (`TMCWaveTableHelper` is called from `tmc2130.py`,
+//! `tmc2240.py` and `tmc5160.py`, nowhere else); any other section refuses the options.
 //!
 //! Registers (datasheet and Klipper's `tmc2130.py`/`tmc5160.py` field masks):
 //! `MSLUT0..7` (0x60–0x67): bit `x` (MSLUT0 bit 0 = bit 0 … MSLUT7 bit 31 = bit 255) is the
@@ -23,6 +25,40 @@ use std::f64::consts::TAU;
 use stepdamp_core::{CorrectionTable, TABLE_TICKS};
 use stepdamp_sim::Profile;
 use stepdamp_sim::profile::DetentTerm;
+
+/// The Klipper driver sections that accept `driver_MSLUT0` … `driver_START_SIN90`: the
+/// modules that call `TMCWaveTableHelper` (Klipper `klippy/extras/tmc.py`, at the commit
+/// named in `docs/exporters.md`). Klipper has no `tmc2160` or `tmc5130` section; the
+/// `tmc2208`, `tmc2209` and `tmc2660` sections refuse the options at start-up.
+pub const WAVE_TABLE_DRIVERS: [&str; 3] = ["tmc2130", "tmc2240", "tmc5160"];
+
+/// Largest length of a Klipper section name `--axis` may give, characters.
+pub const SECTION_MAX: usize = 80;
+
+/// Checks a Klipper section name for the table (`"tmc5160 stepper_x"`): a driver of
+/// [`WAVE_TABLE_DRIVERS`] and one or more stepper-name words of `[A-Za-z0-9_]`
+/// (`stepper_x`, `extruder1`, `manual_stepper my_belt`), single spaces, at most
+/// [`SECTION_MAX`] characters. Returns the section as written between `[` and `]`.
+pub fn klipper_section(axis: &str) -> Result<String, ExportError> {
+    let words: Vec<&str> = axis.split(' ').collect();
+    let shown = crate::escape::line(axis);
+    let ok_word = |w: &str| !w.is_empty() && w.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+    if axis.len() > SECTION_MAX || words.len() < 2 || !words.iter().all(|w| ok_word(w)) {
+        return Err(ExportError::Invalid(format!(
+            "--axis \"{shown}\": a Klipper section \"<driver> <stepper>\" such as \"tmc5160 stepper_x\" \
+             (words of letters, digits and _, single spaces, at most {SECTION_MAX} characters)"
+        )));
+    }
+    if !WAVE_TABLE_DRIVERS.contains(&words[0]) {
+        return Err(ExportError::Invalid(format!(
+            "--axis \"{shown}\": Klipper's {} section has no wave table (it would refuse driver_MSLUT0 at \
+             start-up); the sections that take one are {}",
+            words[0],
+            WAVE_TABLE_DRIVERS.join(", ")
+        )));
+    }
+    Ok(words.join(" "))
+}
 
 /// Amplitude the table is scaled to (the default table's peak: 248 counts = the run current).
 pub const FULL_SCALE: i16 = 248;
@@ -190,6 +226,11 @@ impl OrderCoverage {
     pub fn reduction_db(&self) -> f64 {
         20.0 * (self.wanted_a / self.residual_a.max(1e-12)).log10()
     }
+
+    /// Share of the wanted current the table carries: `1 − residual/wanted` (0 when nothing).
+    pub fn carried_share(&self) -> f64 {
+        (1.0 - self.residual_a / self.wanted_a.max(1e-300)).max(0.0)
+    }
 }
 
 /// A table and how much of the model's ripple it carries.
@@ -315,19 +356,19 @@ impl std::fmt::Display for TmcExport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         writeln!(
             f,
-            "Trinamic table coverage (share of the model's ripple power removed: {:.1} %)",
+            "Trinamic table coverage (share of the model's ripple power the table carries: {:.1} %)",
             100.0 * self.power_share
         )?;
         for o in &self.coverage {
             if o.expressible {
                 writeln!(
                     f,
-                    "  order {:>2}: wanted {:.4} A, table {:.4} A, left {:.4} A ({:.1} dB)",
+                    "  order {:>2}: wanted {:.4} A, table {:.4} A, left {:.4} A ({:.1} % carried)",
                     o.order,
                     o.wanted_a,
                     o.achieved_a,
                     o.residual_a,
-                    o.reduction_db()
+                    100.0 * o.carried_share()
                 )?;
             } else {
                 writeln!(
@@ -386,22 +427,26 @@ pub fn parse_klipper(text: &str, what: &str) -> Result<TmcRegisters, ExportError
     Ok(r)
 }
 
-/// The Klipper config block for a stepper (`section` such as `tmc5160 stepper_x`).
-pub fn klipper_block(e: &TmcExport, section: &str, name: &str) -> String {
-    let mut s = format!("# Microstep table from stepdamp (profile \"{name}\").\n");
+/// The Klipper config block for a stepper (`axis` such as `tmc5160 stepper_x`, checked by
+/// [`klipper_section`]); `name` (the profile's) goes into a comment, escaped to one line.
+/// The comments give the share of each order's wanted current the table carries, not a
+/// predicted reduction (that is the simulation's to say).
+pub fn klipper_block(e: &TmcExport, axis: &str, name: &str) -> Result<String, ExportError> {
+    let section = klipper_section(axis)?;
+    let mut s = format!("# Microstep table from stepdamp (profile \"{}\").\n", crate::escape::line(name));
     for o in &e.coverage {
         s += &format!(
             "#   order {}: {}\n",
             o.order,
             if o.expressible {
-                format!("{:.1} dB of its ripple removed", o.reduction_db())
+                format!("{:.1} % of its compensating current carried", 100.0 * o.carried_share())
             } else {
                 "not expressible".into()
             }
         );
     }
     s += &format!("[{section}]\n");
-    s + &e.registers.klipper_lines()
+    Ok(s + &e.registers.klipper_lines())
 }
 
 #[cfg(test)]
@@ -463,7 +508,7 @@ mod tests {
     #[test]
     fn klipper_block_parses_back_to_the_registers() {
         let e = export(&patent()).unwrap();
-        let text = klipper_block(&e, "tmc5160 stepper_x", "patent-motor");
+        let text = klipper_block(&e, "tmc5160 stepper_x", "patent-motor").unwrap();
         assert!(text.contains("[tmc5160 stepper_x]\ndriver_MSLUT0: "));
         assert_eq!(parse_klipper(&text, "cfg").unwrap(), e.registers);
         let cut: String = text.lines().filter(|l| !l.starts_with("driver_W2")).map(|l| format!("{l}\n")).collect();
@@ -503,6 +548,39 @@ mod tests {
         let mut q = [0i32; 257];
         q[1] = 4;
         assert!(encode(&q).is_err());
+    }
+
+    #[test]
+    fn only_the_sections_klipper_gives_a_wave_table_are_accepted() {
+        let e = export(&patent()).unwrap();
+        for d in WAVE_TABLE_DRIVERS {
+            let axis = format!("{d} stepper_x");
+            assert!(klipper_block(&e, &axis, "m").unwrap().contains(&format!("\n[{axis}]\n")));
+        }
+        assert!(klipper_block(&e, "tmc5160 manual_stepper belt_1", "m").is_ok());
+        for d in ["tmc2208", "tmc2209", "tmc2660", "tmc2160", "tmc5130", "TMC5160"] {
+            let err = klipper_block(&e, &format!("{d} stepper_x"), "m").unwrap_err().to_string();
+            assert!(err.contains("tmc2130, tmc2240, tmc5160") && err.contains(d), "{err}");
+        }
+        for bad in ["tmc5160", "tmc5160 stepper_x]\n[gcode_macro X]", "tmc5160  stepper_x", "tmc5160 a\x1b"] {
+            let err = klipper_block(&e, bad, "m").unwrap_err().to_string();
+            assert!(!err.chars().any(crate::escape::is_unsafe), "{err:?}");
+        }
+    }
+
+    #[test]
+    fn a_hostile_profile_name_stays_inside_its_comment() {
+        let e = export(&patent()).unwrap();
+        let text = klipper_block(&e, "tmc5160 stepper_x", "m\n[gcode_macro PWNED]\ngcode: M112\x1b").unwrap();
+        // Every line is a comment, the one section header, or a driver option.
+        for l in text.lines() {
+            assert!(
+                l.starts_with('#') || l == "[tmc5160 stepper_x]" || l.starts_with("driver_"),
+                "live line {l:?} in\n{text}"
+            );
+        }
+        assert!(!text.contains('\x1b'));
+        assert_eq!(parse_klipper(&text, "cfg").unwrap(), e.registers);
     }
 
     #[test]

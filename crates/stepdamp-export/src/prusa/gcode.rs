@@ -43,11 +43,11 @@ pub fn quantize(v: f64, decimals: usize) -> f32 {
     number(v, decimals).parse().unwrap_or(0.0)
 }
 
-/// `s` for a `;` comment: printable ASCII only (any other character, `\` and `*` become `?`),
-/// at most `max` characters (cut with `...`).
+/// `s` for a `;` comment: [`crate::escape::gcode_comment`] (one line of printable ASCII,
+/// anything else as a visible escape), `*` (a checksum's mark) as `\x2a`, and at most `max`
+/// characters (cut with `...`).
 pub fn comment_text(s: &str, max: usize) -> String {
-    let clean: String =
-        s.chars().map(|c| if (' '..='~').contains(&c) && c != '\\' && c != '*' { c } else { '?' }).collect();
+    let clean = crate::escape::gcode_comment(s).replace('*', "\\x2a");
     if clean.len() <= max { clean } else { format!("{}...", &clean[..max.saturating_sub(3)]) }
 }
 
@@ -147,7 +147,7 @@ mod tests {
     #[test]
     fn comments_carry_no_control_characters_and_stay_short() {
         let t = comment_text("a\nM970 X1\r\u{7}*\\é", 80);
-        assert_eq!(t, "a?M970 X1?????");
+        assert_eq!(t, "a\\nM970 X1\\r\\x07\\x2a\\\\\\u{e9}");
         assert_eq!(comment_text(&"x".repeat(200), 20).len(), 20);
     }
 }
