@@ -266,7 +266,7 @@ pub fn parse_m972(text: &str, axis: Option<char>, what: &str) -> Result<PrusaCor
     for (no, line) in text.lines().enumerate() {
         let Some(line) = clean_line(line) else { continue };
         let f: Vec<&str> = line.split(',').map(str::trim).collect();
-        if f.len() != 5 || f[0].len() != 1 || !matches!(f[1], "F" | "B") {
+        if f.len() != 5 || !matches!(f[0], "X" | "Y") || !matches!(f[1], "F" | "B") {
             continue;
         }
         let ax = f[0].chars().next().unwrap_or(' ');
@@ -432,7 +432,11 @@ mod tests {
         let (c, kind) = parse_text(&print, None, "p").unwrap();
         assert!(kind.contains("M972 print (firmware 6.2)"), "{kind}");
         assert_eq!((c.firmware, c.forward.mag[4], c.backward.pha[3]), (Firmware::V6_2, 0.03509, 0.3));
+        // Found by the fuzzer: a print line of another "axis" (here ESC) is not the printer's.
+        let esc = format!("{print}\u{1b}, F, 4, 0.03590, 0.20000\n");
+        assert_eq!(parse_text(&esc, None, "p").unwrap().0, c);
         let (c, _) = parse_text("M973 XF0,0 0,0 0,0 0,0 0.5,1\nM973 XB0,0\n", None, "m").unwrap();
+
         assert_eq!((c.firmware, c.forward.mag[4], c.backward.mag[4]), (Firmware::V6_2, 0.5, 0.0));
     }
 
