@@ -73,5 +73,6 @@ pub fn load_table(
         what: what.to_string(),
         reason: format!("not a Klipper block with driver_MSLUT0…, nor Prusa: {e}"),
     })?;
+    c.check_replay(what)?;
     Ok((c.table(), kind))
 }

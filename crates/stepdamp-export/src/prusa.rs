@@ -108,7 +108,7 @@ impl Spectrum {
 
     /// The largest |shift| of [`Self::shifts_exact`]; `None` on overflow.
     pub fn peak_shift(&self, fw: Firmware) -> Option<i64> {
-        self.shifts_exact(fw).map(|v| v.iter().map(|x| x.abs()).max().unwrap_or(0))
+        self.shifts_exact(fw).map(|v| v.iter().map(|x| x.saturating_abs()).max().unwrap_or(0))
     }
 
     /// The firmware's phase shift per tick as stored (`int8_t`, wrapping as on the chip;
@@ -252,6 +252,20 @@ pub fn fit(c: &Correction, fw: Firmware) -> Result<Fitted, ExportError> {
 }
 
 impl PrusaCorrection {
+    /// Refuses items whose table the firmware cannot compute (its 32-bit fixed-point sum
+    /// overflows: undefined on the chip), which [`Self::table`] would replay as no correction.
+    pub fn check_replay(&self, what: &str) -> Result<(), ExportError> {
+        for (name, s) in [("forward", &self.forward), ("backward", &self.backward)] {
+            if s.shifts_exact(self.firmware).is_none() {
+                return Err(ExportError::Parse {
+                    what: what.to_string(),
+                    reason: format!("the {name} items overflow the firmware's 32-bit table arithmetic"),
+                });
+            }
+        }
+        Ok(())
+    }
+
     /// The replay table the core runs in `table` mode.
     pub fn table(&self) -> CorrectionTable {
         let mut t = CorrectionTable { full_scale: CURRENT_AMPLITUDE, ..Default::default() };

@@ -68,14 +68,18 @@ pub fn shifts(mag: &[f32], pha: &[f32]) -> Option<Vec<i64>> {
     let fixed: Vec<(i64, i64)> = mag.iter().zip(pha).map(|(&m, &p)| (mag_to_fixed(m), pha_to_fixed(p))).collect();
     let full = 1i64 << SIN_LUT_FRACTIONAL;
     let fits = |v: i64| i64::from(i32::MIN) <= v && v <= i64::from(i32::MAX);
+    // `lround` into the chip's 32-bit `long`: beyond it the firmware's result is undefined.
+    if !fixed.iter().all(|&(m, p)| SIN_FRACTION.checked_mul(m).is_some_and(fits) && fits(p)) {
+        return None;
+    }
     let mut out = Vec::with_capacity(1024);
     for i in 0..1024i64 {
         let item_phase = i * SIN_FRACTION;
         let mut raw = 0i64;
         for (n, &(m, p)) in fixed.iter().enumerate() {
-            let term = SIN_FRACTION.checked_mul(m)?.checked_mul(sin_lut(n as i64 * item_phase + p, full))?;
+            let term = SIN_FRACTION * m * sin_lut(n as i64 * item_phase + p, full);
             raw += term;
-            if !(fits(term) && fits(raw) && fits(SIN_FRACTION * m)) {
+            if !(fits(term) && fits(raw)) {
                 return None;
             }
         }
@@ -120,5 +124,12 @@ mod tests {
         mag[0] = 1e3;
         mag[1] = 1e3;
         assert!(shifts(&mag, &pha).is_none(), "a 32-bit overflow is reported");
+        // Found by the fuzzer: values beyond the 32-bit `long` of `lround` (any f32 a
+        // 168-byte file can hold) are reported too, not computed with an overflow.
+        for (m, p) in [(f32::MAX, 0.0), (0.0, f32::MAX), (-f32::MAX, -f32::MAX)] {
+            mag[3] = m;
+            pha[3] = p;
+            assert!(shifts(&mag, &pha).is_none());
+        }
     }
 }
