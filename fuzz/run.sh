@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Fuzzes the profile parser, the run-log reader and the static-table reader with libFuzzer.
+# Fuzzes the profile parser, the run-log reader, the static-table reader and the Prusa
+# read-back reader with libFuzzer.
 #
-#   bash fuzz/run.sh [SECONDS_PER_TARGET] [TARGET…]      (default: 20 s each, all three)
+#   bash fuzz/run.sh [SECONDS_PER_TARGET] [TARGET…]      (default: 20 s each, all four)
 #
 # Starts from the minimised seeds in fuzz/corpus/TARGET (kept in git) plus what earlier runs
 # found in fuzz/corpus-run/TARGET (not kept). Prints each target's executions; a crash stops
@@ -11,7 +12,7 @@ cd "$(dirname "$0")"
 secs=${1:-20}
 shift || true
 targets=("$@")
-[[ ${#targets[@]} -gt 0 ]] || targets=(profile log static_table)
+[[ ${#targets[@]} -gt 0 ]] || targets=(profile log static_table prusa_readback)
 # cargo fuzz passes unstable (-Z) rustc flags; stable rustc accepts them with this.
 export RUSTC_BOOTSTRAP=1
 # No sanitizer: the code is safe Rust (unsafe_code is forbidden), so ASan would only slow
@@ -22,6 +23,7 @@ cargo fuzz build "${flags[@]}"
 for t in "${targets[@]}"; do
     dict=dict/csv.dict
     [[ $t == profile ]] && dict=dict/profile.dict
+    [[ $t == prusa_readback ]] && dict=dict/prusa.dict
     mkdir -p "corpus-run/$t"
     log=$(mktemp)
     if ! cargo fuzz run "${flags[@]}" "$t" "corpus-run/$t" "corpus/$t" -- \

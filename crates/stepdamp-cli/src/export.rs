@@ -3,16 +3,17 @@
 
 use crate::Global;
 use crate::common::{load_motor, write_atomic};
-use anyhow::{Context, Result, anyhow, bail};
+use anyhow::{Result, bail};
 use std::path::{Path, PathBuf};
 use stepdamp_core::{Compensation, Mode};
-use stepdamp_export::{Correction, c_header, escape, predict, prusa, simplefoc, tmc};
+use stepdamp_export::{Correction, RunCurrent, c_header, escape, predict, prusa, simplefoc, tmc};
 
 /// Target format.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {
-    /// Prusa-Firmware-Buddy phase stepping: M973 lines (FILE) and the binary correction
-    /// files FILE.fwd.bin and FILE.bck.bin.
+    /// Prusa-Firmware-Buddy phase stepping (XL, iX, Core One, MK4): M970/M971 G-code for
+    /// firmware >= 6.3.1 (M973 with --firmware 6.2) in FILE, and the binary correction files
+    /// FILE.fwd.bin and FILE.bck.bin.
     Prusa,
     /// A Klipper [tmc2130|tmc2240|tmc5160 …] block with a Trinamic microstep table.
     KlipperTmc,
@@ -37,9 +38,64 @@ impl Format {
 /// Source format of `stepdamp import`.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ImportFormat {
-    /// Prusa-Firmware-Buddy phase stepping: M972 output, M973 lines or a 168-byte
-    /// correction file.
+    /// Prusa-Firmware-Buddy phase stepping: the `M971 X F` / `M971 X B` read-back of firmware
+    /// 6.3.1 and later (a terminal log with OctoPrint's `Recv: ` is fine), the 6.2 M972
+    /// print, M973 lines or a 168-byte correction file.
     Prusa,
+}
+
+/// Prusa firmware generation of `--firmware`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PrusaFirmware {
+    /// 6.3.1 and later (v6.3.1, v6.3.2): M970/M971 per item, the fixed-point scale.
+    #[value(name = "6.3.1", alias = "6.3")]
+    V6_3_1,
+    /// 6.2.x: one M973 line per direction, the float scale (4x the 6.3.1 magnitudes).
+    #[value(name = "6.2")]
+    V6_2,
+}
+
+impl From<PrusaFirmware> for prusa::Firmware {
+    fn from(f: PrusaFirmware) -> Self {
+        match f {
+            PrusaFirmware::V6_3_1 => prusa::Firmware::V6_3_1,
+            PrusaFirmware::V6_2 => prusa::Firmware::V6_2,
+        }
+    }
+}
+
+/// The run current, peak or RMS: at most one of the two (clap's group); the formats that
+/// use a current require one ([`CurrentArgs::run_current`]), `export simplefoc` refuses both.
+#[derive(clap::Args, Debug)]
+#[group(required = false, multiple = false)]
+pub struct CurrentArgs {
+    /// Run current as the PEAK of the current vector, A: the amplitude of each phase's sine
+    /// wave, the unit of the profile's holding_current_a. For a drive's RMS setting (Klipper
+    /// run_current, Prusa's motor current) use --current-rms.
+    #[arg(long)]
+    pub current: Option<f64>,
+    /// Run current as the RMS of each phase's current, A (peak = sqrt(2) x RMS): Klipper's
+    /// run_current, Prusa's motor current settings.
+    #[arg(long)]
+    pub current_rms: Option<f64>,
+}
+
+impl CurrentArgs {
+    /// Whether either option was given.
+    pub fn given(&self) -> bool {
+        self.current.is_some() || self.current_rms.is_some()
+    }
+
+    /// The run current given; an error when neither option is.
+    pub fn run_current(&self) -> Result<RunCurrent> {
+        Ok(match (self.current, self.current_rms) {
+            (Some(p), None) => RunCurrent::from_peak(p)?,
+            (None, Some(r)) => RunCurrent::from_rms(r)?,
+            _ => bail!(
+                "the run current is needed: --current A (peak, the current vector) or --current-rms A (RMS per phase)"
+            ),
+        })
+    }
 }
 
 /// Arguments of `stepdamp export`.
@@ -51,9 +107,12 @@ pub struct ExportArgs {
     /// Motor profile (identified TOML) or preset.
     #[arg(long)]
     pub motor: String,
-    /// Holding (run) current in A the correction is scaled for (default: the profile's).
-    #[arg(long)]
-    pub current: Option<f64>,
+    /// The run current the correction is computed for (prusa, klipper-tmc, c-header).
+    #[command(flatten)]
+    pub current: CurrentArgs,
+    /// Prusa firmware the G-code is for (prusa only; default 6.3.1, which covers 6.3.x).
+    #[arg(long, value_enum)]
+    pub firmware: Option<PrusaFirmware>,
     /// Output file.
     #[arg(long)]
     pub out: PathBuf,
@@ -84,15 +143,19 @@ pub struct ImportArgs {
     /// Source format (only `prusa`).
     #[arg(value_enum)]
     pub format: ImportFormat,
-    /// M972 output, M973 lines, or a 168-byte correction file.
-    #[arg(long)]
-    pub m972: PathBuf,
+    /// The printer's output (M971 read-back, 6.2 M972 print, M973 lines) or a 168-byte
+    /// correction file; at most 1 MiB.
+    #[arg(long, visible_alias = "m972")]
+    pub readback: PathBuf,
     /// The motor's base profile (everything but the detent model).
     #[arg(long)]
     pub motor: String,
-    /// Run current in A the printer used.
-    #[arg(long)]
-    pub current: f64,
+    /// The run current the printer used.
+    #[command(flatten)]
+    pub current: CurrentArgs,
+    /// Firmware scale of a 168-byte correction file (the text forms say their own).
+    #[arg(long, value_enum, default_value = "6.3.1")]
+    pub firmware: PrusaFirmware,
     /// Axis to read when the file holds several (X or Y).
     #[arg(long)]
     pub axis: Option<char>,
@@ -116,7 +179,12 @@ pub fn run_export(a: ExportArgs, _g: &Global) -> Result<()> {
         bail!("--duration {}: 0 (no prediction) or 0.5..=100 s", a.duration);
     }
     refuse_unused_options(&a)?;
-    let c = Correction::from_profile(&p, a.current)?;
+    // SimpleFOC's feed-forward does not depend on the run current (refused above).
+    let current = if a.format == Format::Simplefoc { None } else { Some(a.current.run_current()?) };
+    if let Some(i) = current {
+        outln!("run current {i}");
+    }
+    let c = Correction::from_profile(&p, current.map(|i| i.peak_a()))?;
     // The simulation runs at the exported current.
     let scaled = p.edited(&a.motor, |d| d.drive.holding_current_a = c.holding_current_a)?;
     let mut files: Vec<(PathBuf, Vec<u8>)> = Vec::new();
@@ -128,13 +196,11 @@ pub fn run_export(a: ExportArgs, _g: &Global) -> Result<()> {
                 Some("Y") | Some("y") => 'Y',
                 Some(o) => bail!("--axis {}: Prusa phase stepping has axes X and Y", escape::line(o)),
             };
-            let pc = prusa::PrusaCorrection::from_correction(&c)?;
-            let (f, b) = (sibling(&a.out, ".fwd.bin"), sibling(&a.out, ".bck.bin"));
-            wrote = format!("(M973 {axis}F/{axis}B), {} and {}", f.display(), b.display());
-            files.push((a.out.clone(), pc.m973(axis).into_bytes()));
-            files.push((f, prusa::encode_file(&pc.forward).to_vec()));
-            files.push((b, prusa::encode_file(&pc.backward).to_vec()));
-            (Compensation::Table, Some(pc.table()))
+            let Some(run) = current else { bail!("export prusa needs the run current") };
+            let (mut f, table, how) = prusa_files(&a, &p.name, &c, run, axis)?;
+            files.append(&mut f);
+            wrote = how;
+            (Compensation::Table, Some(table))
         }
         Format::KlipperTmc => {
             let e = tmc::export(&c)?;
@@ -177,7 +243,7 @@ fn refuse_unused_options(a: &ExportArgs) -> Result<()> {
         |opt: &str, why: &str| -> Result<()> { bail!("{opt} does nothing for export {}: {why}", a.format.name()) };
     match a.format {
         Format::Simplefoc => {
-            if a.current.is_some() {
+            if a.current.given() {
                 unused("--current", "the q-current feed-forward A_k/Km does not depend on the run current")?;
             }
             if a.axis.is_some() {
@@ -190,10 +256,47 @@ fn refuse_unused_options(a: &ExportArgs) -> Result<()> {
     if a.name.is_some() && a.format != Format::CHeader {
         unused("--name", "it names the C header's identifiers (export c-header)")?;
     }
+    if a.firmware.is_some() && a.format != Format::Prusa {
+        unused("--firmware", "it is the Prusa firmware the G-code is for (export prusa)")?;
+    }
     if a.loop_hz.is_some() && a.format != Format::Simplefoc {
         unused("--loop-hz", "it is SimpleFOC's loopFOC rate (export simplefoc)")?;
     }
     Ok(())
+}
+
+/// A file to write: its path and bytes.
+type OutFile = (PathBuf, Vec<u8>);
+
+/// The Prusa G-code and files, what the "wrote" line says about them, and the table the
+/// written G-code makes (read back from the text itself) for the prediction.
+fn prusa_files(
+    a: &ExportArgs,
+    name: &str,
+    c: &Correction,
+    current: RunCurrent,
+    axis: char,
+) -> Result<(Vec<OutFile>, stepdamp_core::CorrectionTable, String)> {
+    let fw: prusa::Firmware = a.firmware.unwrap_or(PrusaFirmware::V6_3_1).into();
+    let fitted = prusa::fit(c, fw)?;
+    let text = prusa::gcode::write(&fitted, axis, &prusa::gcode::Header { profile: name, current })?;
+    let (written, _) = prusa::parse_text(&text, Some(axis), "the exported G-code")?;
+    if written != fitted.correction {
+        bail!("internal: the exported G-code reads back to another correction");
+    }
+    out!("{fitted}");
+    let (f, b) = (sibling(&a.out, ".fwd.bin"), sibling(&a.out, ".bck.bin"));
+    let how = match fw {
+        prusa::Firmware::V6_3_1 => format!("M970 {axis}0, M971 {axis} F|B x17, M970 {axis}1"),
+        prusa::Firmware::V6_2 => format!("M973 {axis}F/{axis}B"),
+    };
+    let wrote = format!("({how}, firmware {}), {} and {}", fw.label(), f.display(), b.display());
+    let files = vec![
+        (a.out.clone(), text.into_bytes()),
+        (f, prusa::encode_file(&written.forward).to_vec()),
+        (b, prusa::encode_file(&written.backward).to_vec()),
+    ];
+    Ok((files, written.table(), wrote))
 }
 
 /// Prints the prediction of the exported correction and returns the verdict on the first
@@ -254,21 +357,18 @@ const DEFAULT_LOOP_HZ: f64 = 10_000.0;
 /// Runs `stepdamp import prusa`.
 pub fn run_import(a: ImportArgs, _g: &Global) -> Result<()> {
     let base = load_motor(&a.motor)?;
-    let bytes = std::fs::read(&a.m972).with_context(|| format!("reading {}", a.m972.display()))?;
-    let what = a.m972.display().to_string();
-    let pc = if bytes.len() == prusa::FILE_BYTES && bytes[..32].iter().all(|&b| b == 0) {
-        let s = prusa::decode_file(&bytes, &what)?;
-        prusa::PrusaCorrection { forward: s, backward: s }
-    } else {
-        let text =
-            std::str::from_utf8(&bytes).map_err(|_| anyhow!("{what}: not text and not a 168-byte correction file"))?;
-        if text.lines().any(|l| l.trim().starts_with("M973 ")) {
-            prusa::parse_m973(text, a.axis, &what)?
-        } else {
-            prusa::parse_m972(text, a.axis, &what)?
-        }
+    let current = a.current.run_current()?;
+    let bytes = prusa::read::read_capped(&a.readback)?;
+    let what = a.readback.display().to_string();
+    let axis = match a.axis {
+        None => None,
+        Some('X' | 'x') => Some('X'),
+        Some('Y' | 'y') => Some('Y'),
+        Some(o) => bail!("--axis {o:?}: Prusa phase stepping has axes X and Y"),
     };
-    let (p, spread) = prusa::import_profile(&base, &pc, a.current)?;
+    let (pc, kind) = prusa::parse_bytes(&bytes, axis, &what, a.firmware.into())?;
+    outln!("read {kind}; run current {current}");
+    let (p, spread) = prusa::import_profile(&base, &pc, current.peak_a())?;
     write_atomic(&a.out, p.to_toml_string().as_bytes())?;
     for h in &p.motor.detent {
         outln!("order {:>2}: A = {:.5} N·m, φ = {:+.4} rad", h.order, h.amplitude_nm, h.phase_rad);

@@ -41,6 +41,9 @@ fn terminal_is_clean(o: &Output) {
 /// Runs an export; `Some(file text)` when it wrote, `None` when the name was refused.
 fn export(fmt: &str, profile: &str, out: &Path, extra: &[&str]) -> Option<String> {
     let mut args = vec!["export", fmt, "--motor", profile, "--out", out.to_str().unwrap(), "--duration", "0"];
+    if fmt != "simplefoc" {
+        args.extend_from_slice(&["--current", "1.9"]);
+    }
     args.extend_from_slice(extra);
     let o = stepdamp(&args);
     terminal_is_clean(&o);
@@ -79,11 +82,19 @@ fn hostile_names_stay_inert_in_every_exported_format() {
                 assert!(!code.contains("int x") && !code.contains("script") && !code.contains("PWNED"), "{fmt}: {h}");
             }
         }
-        // Prusa: G-code and binary files carry no profile text at all (or only escaped).
+        // Prusa: the name only inside its one `;` comment line, escaped to printable ASCII
+        // without `*` (a checksum's mark); every other line a comment or M970/M971.
         let g = dir.path().join(format!("p{i}.gcode"));
         if let Some(g) = export("prusa", &prof, &g, &[]) {
-            assert!(!g.contains('\u{1b}') && !g.contains("[gcode_macro") && !g.contains("\nM112"), "{g}");
-            assert!(!g.contains("*/ int") && !g.contains("<script>"), "{g}");
+            assert!(!g.contains('\u{1b}') && !g.contains("\nM112") && !g.contains("*/ int"), "{g}");
+            for l in g.lines() {
+                assert!(l.bytes().all(|b| (b' '..=b'~').contains(&b)), "{l:?}");
+                let name_free = !l.contains("PWNED") && !l.contains("int x") && !l.contains("script");
+                assert!(
+                    l.starts_with("; profile: ") || (name_free && (l.starts_with("; ") || l.starts_with("M97"))),
+                    "live G-code line {l:?} for {name:?}"
+                );
+            }
         }
     }
 }
@@ -231,6 +242,8 @@ fn klipper_refuses_a_driver_without_a_wave_table_and_writes_nothing() {
             "klipper-tmc",
             "--motor",
             "patent-motor",
+            "--current",
+            "1.9",
             "--axis",
             axis,
             "--out",
@@ -246,6 +259,8 @@ fn klipper_refuses_a_driver_without_a_wave_table_and_writes_nothing() {
         "klipper-tmc",
         "--motor",
         "patent-motor",
+        "--current",
+        "1.9",
         "--axis",
         "tmc2240 stepper_y",
         "--out",
@@ -349,7 +364,16 @@ fn an_export_the_simulation_does_not_confirm_is_refused_unless_forced() {
     let prof = dir.path().join("cosine.toml");
     std::fs::write(&prof, cosine).unwrap();
     let out = dir.path().join("tmc.cfg");
-    let args = ["export", "klipper-tmc", "--motor", prof.to_str().unwrap(), "--out", out.to_str().unwrap()];
+    let args = [
+        "export",
+        "klipper-tmc",
+        "--motor",
+        prof.to_str().unwrap(),
+        "--current",
+        "1.9",
+        "--out",
+        out.to_str().unwrap(),
+    ];
     let o = stepdamp(&args);
     assert!(!o.status.success(), "{}", text(&o));
     assert!(text(&o).contains("not measurably better") && text(&o).contains("nothing written"), "{}", text(&o));

@@ -3,8 +3,9 @@
 //! A detent model (a motor profile) written in the correction formats of the drives people
 //! already run, read back from them, and replayed in the simulator before anyone flashes it:
 //!
-//! - [`prusa`]: Prusa-Firmware-Buddy phase stepping: `M973` lines, the binary correction
-//!   files, the `M972` printout; replayed as the firmware's 1024-tick current table.
+//! - [`prusa`]: Prusa-Firmware-Buddy phase stepping: `M970`/`M971` lines for firmware
+//!   ≥ 6.3.1 (`M973` for 6.2), the binary correction files, the `M971` read-back and the 6.2
+//!   `M972` print; replayed as the firmware's 1024-tick current table.
 //! - [`tmc`]: the Trinamic microstep table (`MSLUT0..7`, `MSLUTSEL`, `MSLUTSTART`) as a
 //!   Klipper `[tmc5160 …]` block (sections `tmc2130`, `tmc2240`, `tmc5160` only), with a coverage report (a mirrored quarter wave can carry
 //!   only the sine part of orders 4, 8, …).
@@ -28,7 +29,7 @@ pub mod prusa;
 pub mod simplefoc;
 pub mod tmc;
 
-pub use model::Correction;
+pub use model::{Correction, RunCurrent};
 
 /// Why an export or import failed.
 #[derive(Debug, thiserror::Error)]
@@ -52,34 +53,26 @@ pub enum ExportError {
     Sim(String),
 }
 
-/// A replay table read from a file, and what it was.
+/// A replay table read from a file, and what it was. A 168-byte Prusa correction file is read
+/// in the scale of firmware ≥ 6.3.1 (the releases users run); Prusa text says its own version.
 pub fn load_table(
     bytes: &[u8],
     what: &str,
     axis: Option<char>,
-) -> Result<(stepdamp_core::CorrectionTable, &'static str), ExportError> {
-    if bytes.len() == prusa::FILE_BYTES && bytes[..32].iter().all(|&b| b == 0) {
-        let s = prusa::decode_file(bytes, what)?;
-        return Ok((
-            prusa::PrusaCorrection { forward: s, backward: s }.table(),
-            "Prusa correction file (both directions)",
-        ));
+) -> Result<(stepdamp_core::CorrectionTable, String), ExportError> {
+    let is_prusa_file = bytes.len() == prusa::FILE_BYTES && bytes[..32].iter().all(|&b| b == 0);
+    if !is_prusa_file {
+        if let Ok(text) = std::str::from_utf8(bytes) {
+            if text.contains("driver_MSLUT0") {
+                let t = tmc::table(&tmc::parse_klipper(text, what)?);
+                return Ok((t, "Klipper Trinamic microstep table".to_string()));
+            }
+        }
     }
-    let text = std::str::from_utf8(bytes).map_err(|_| ExportError::Parse {
+    let (c, kind) = prusa::parse_bytes(bytes, axis, what, prusa::Firmware::V6_3_1).map_err(|e| ExportError::Parse {
         what: what.to_string(),
-        reason: format!("neither a {}-byte Prusa correction file nor text", prusa::FILE_BYTES),
+        reason: format!("not a Klipper block with driver_MSLUT0…, nor Prusa: {e}"),
     })?;
-    if text.contains("driver_MSLUT0") {
-        return Ok((tmc::table(&tmc::parse_klipper(text, what)?), "Klipper Trinamic microstep table"));
-    }
-    if text.lines().any(|l| l.trim().starts_with("M973 ")) {
-        return Ok((prusa::parse_m973(text, axis, what)?.table(), "Prusa M973 lines"));
-    }
-    if text.lines().any(|l| l.split(',').count() == 5) {
-        return Ok((prusa::parse_m972(text, axis, what)?.table(), "Prusa M972 output"));
-    }
-    Err(ExportError::Parse {
-        what: what.to_string(),
-        reason: "not a Prusa correction file, M973/M972 text or a Klipper block with driver_MSLUT0…".into(),
-    })
+    c.check_replay(what)?;
+    Ok((c.table(), kind))
 }

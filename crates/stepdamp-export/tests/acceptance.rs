@@ -17,7 +17,7 @@ fn setup() -> (Profile, Correction) {
 #[test]
 fn drive_laws_reduce_each_resonance_like_the_patent_law() {
     let (p, c) = setup();
-    let prusa_table = prusa::PrusaCorrection::from_correction(&c).unwrap().table();
+    let prusa_table = prusa::fit(&c, prusa::Firmware::V6_3_1).unwrap().correction.table();
     let comps = vec![
         ("patent".to_string(), predict::config(&p, Compensation::Patent, None).unwrap()),
         ("angle".to_string(), predict::config(&p, Compensation::Angle, None).unwrap()),
