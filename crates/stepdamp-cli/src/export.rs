@@ -205,7 +205,8 @@ pub fn run_export(a: ExportArgs, _g: &Global) -> Result<()> {
         Format::KlipperTmc => {
             let e = tmc::export(&c)?;
             let section = a.axis.clone().unwrap_or_else(|| "tmc5160 stepper_x".to_string());
-            files.push((a.out.clone(), tmc::klipper_block(&e, &section, &p.name)?.into_bytes()));
+            let Some(run) = current else { bail!("export klipper-tmc needs the run current") };
+            files.push((a.out.clone(), tmc::klipper_block(&e, &section, &p.name, run)?.into_bytes()));
             out!("{e}");
             wrote = format!("([{section}])");
             (Compensation::Table, Some(tmc::table(&e.registers)))

@@ -19,7 +19,7 @@
 //! makes is `Σ_j (c_{4j−1} + c_{4j+1}) sin(4jθe)`: only the **sine part of orders 4, 8, 12…**
 //! of the correction can be expressed, nothing of orders 1, 2, 3, 5, 6, 7.
 
-use crate::{Correction, ExportError};
+use crate::{Correction, ExportError, RunCurrent};
 use serde::Serialize;
 use std::f64::consts::TAU;
 use stepdamp_core::{CorrectionTable, TABLE_TICKS};
@@ -430,10 +430,16 @@ pub fn parse_klipper(text: &str, what: &str) -> Result<TmcRegisters, ExportError
 /// The Klipper config block for a stepper (`axis` such as `tmc5160 stepper_x`, checked by
 /// [`klipper_section`]); `name` (the profile's) goes into a comment, escaped to one line.
 /// The comments give the share of each order's wanted current the table carries, not a
-/// predicted reduction (that is the simulation's to say).
-pub fn klipper_block(e: &TmcExport, axis: &str, name: &str) -> Result<String, ExportError> {
+/// predicted reduction (that is the simulation's to say), and the run current the table was
+/// computed for, both ways: Klipper's `run_current` is RMS per phase, the table's scale peak.
+pub fn klipper_block(e: &TmcExport, axis: &str, name: &str, current: RunCurrent) -> Result<String, ExportError> {
     let section = klipper_section(axis)?;
     let mut s = format!("# Microstep table from stepdamp (profile \"{}\").\n", crate::escape::line(name));
+    s += &format!(
+        "# Computed for {current}: set run_current: {:.3} in this section; at another current\n\
+         # the table over- or under-corrects (export again with that current).\n",
+        current.rms_a()
+    );
     for o in &e.coverage {
         s += &format!(
             "#   order {}: {}\n",
@@ -506,9 +512,17 @@ mod tests {
     }
 
     #[test]
+    fn klipper_block_states_its_run_current_as_rms_and_peak() {
+        let e = export(&patent()).unwrap();
+        let text = klipper_block(&e, "tmc5160 stepper_x", "m", RunCurrent::from_rms(0.65).unwrap()).unwrap();
+        assert!(text.contains("0.919 A peak (current vector) = 0.650 A RMS per phase"), "{text}");
+        assert!(text.contains("set run_current: 0.650 in this section"), "{text}");
+    }
+
+    #[test]
     fn klipper_block_parses_back_to_the_registers() {
         let e = export(&patent()).unwrap();
-        let text = klipper_block(&e, "tmc5160 stepper_x", "patent-motor").unwrap();
+        let text = klipper_block(&e, "tmc5160 stepper_x", "patent-motor", RunCurrent::from_peak(1.9).unwrap()).unwrap();
         assert!(text.contains("[tmc5160 stepper_x]\ndriver_MSLUT0: "));
         assert_eq!(parse_klipper(&text, "cfg").unwrap(), e.registers);
         let cut: String = text.lines().filter(|l| !l.starts_with("driver_W2")).map(|l| format!("{l}\n")).collect();
@@ -555,15 +569,21 @@ mod tests {
         let e = export(&patent()).unwrap();
         for d in WAVE_TABLE_DRIVERS {
             let axis = format!("{d} stepper_x");
-            assert!(klipper_block(&e, &axis, "m").unwrap().contains(&format!("\n[{axis}]\n")));
+            assert!(
+                klipper_block(&e, &axis, "m", RunCurrent::from_peak(1.9).unwrap())
+                    .unwrap()
+                    .contains(&format!("\n[{axis}]\n"))
+            );
         }
-        assert!(klipper_block(&e, "tmc5160 manual_stepper belt_1", "m").is_ok());
+        assert!(klipper_block(&e, "tmc5160 manual_stepper belt_1", "m", RunCurrent::from_peak(1.9).unwrap()).is_ok());
         for d in ["tmc2208", "tmc2209", "tmc2660", "tmc2160", "tmc5130", "TMC5160"] {
-            let err = klipper_block(&e, &format!("{d} stepper_x"), "m").unwrap_err().to_string();
+            let err = klipper_block(&e, &format!("{d} stepper_x"), "m", RunCurrent::from_peak(1.9).unwrap())
+                .unwrap_err()
+                .to_string();
             assert!(err.contains("tmc2130, tmc2240, tmc5160") && err.contains(d), "{err}");
         }
         for bad in ["tmc5160", "tmc5160 stepper_x]\n[gcode_macro X]", "tmc5160  stepper_x", "tmc5160 a\x1b"] {
-            let err = klipper_block(&e, bad, "m").unwrap_err().to_string();
+            let err = klipper_block(&e, bad, "m", RunCurrent::from_peak(1.9).unwrap()).unwrap_err().to_string();
             assert!(!err.chars().any(crate::escape::is_unsafe), "{err:?}");
         }
     }
@@ -571,7 +591,13 @@ mod tests {
     #[test]
     fn a_hostile_profile_name_stays_inside_its_comment() {
         let e = export(&patent()).unwrap();
-        let text = klipper_block(&e, "tmc5160 stepper_x", "m\n[gcode_macro PWNED]\ngcode: M112\x1b").unwrap();
+        let text = klipper_block(
+            &e,
+            "tmc5160 stepper_x",
+            "m\n[gcode_macro PWNED]\ngcode: M112\x1b",
+            RunCurrent::from_peak(1.9).unwrap(),
+        )
+        .unwrap();
         // Every line is a comment, the one section header, or a driver option.
         for l in text.lines() {
             assert!(
