@@ -343,33 +343,30 @@ fn non_negative(field: &'static str, v: f32) -> Result<f32, ConfigError> {
     }
 }
 
-impl Config {
-    /// Validates `p` and precomputes everything the step needs. [`Compensation::Table`]
-    /// needs its table: use [`Config::with_table`].
-    pub fn new(p: &Params<'_>) -> Result<Config, ConfigError> {
-        if p.compensation == Compensation::Table {
-            return Err(ConfigError::Invalid {
-                field: "compensation",
-                value: 0.0,
-                reason: Reason::Other("table compensation needs a correction table: build with Config::with_table"),
-            });
-        }
-        Self::build(p)
-    }
+/// The inputs of [`Config::build`], each checked against its limit: the first stage of
+/// building a [`Config`] (the second derives what the step needs from these).
+struct Checked {
+    km: f32,
+    r: f32,
+    l: f32,
+    fs: f32,
+    vdc: f32,
+    pwm: f32,
+    limit: f32,
+    hold: f32,
+    bw: f32,
+    cpr: u32,
+    kpv: f32,
+    kpp: f32,
+    kip: f32,
+    vf: f32,
+    series: HarmonicSeries,
+}
 
-    /// [`Config::new`] for [`Compensation::Table`] (any other compensation ignores the
-    /// table): the table's `full_scale` must be > 0 and its largest entry, scaled to the
-    /// holding current, within the current limit.
-    pub fn with_table(p: &Params<'_>, table: &CorrectionTable) -> Result<Config, ConfigError> {
-        let mut cfg = Self::build(p)?;
-        if p.compensation == Compensation::Table {
-            crate::correction::check_table(table, cfg.holding_current_a, cfg.current_limit_a)?;
-            cfg.table = *table;
-        }
-        Ok(cfg)
-    }
-
-    fn build(p: &Params<'_>) -> Result<Config, ConfigError> {
+impl Checked {
+    /// Checks every input of `p` against its limit (in profile order: the first
+    /// offending parameter is reported) and the combinations the limits cannot express.
+    fn new(p: &Params<'_>) -> Result<Checked, ConfigError> {
         let m = &p.motor;
         let d = &p.drive;
         let km = within(&limits::KM_NM_PER_A, m.km_nm_per_a)?;
@@ -409,7 +406,6 @@ impl Config {
         let kpp = non_negative("servo.position_nm_per_rad", s.position_nm_per_rad)?;
         let kip = non_negative("servo.position_integral_nm_per_rad_s", s.position_integral_nm_per_rad_s)?;
         let vf = within(&limits::VELOCITY_FILTER_HZ, s.velocity_filter_hz)?;
-        let ts = 1.0 / pwm;
         let series = HarmonicSeries::new(m.detent, 1.0 / km)?;
         within(&limits::COMPUTATION_DELAY_PERIODS, f32::from(d.computation_delay_periods))?;
         if p.mode == Mode::Servo && matches!(p.compensation, Compensation::Angle | Compensation::Table) {
@@ -419,6 +415,40 @@ impl Config {
                 reason: Reason::Other("angle and table compensation are open-loop laws (use patent in servo mode)"),
             });
         }
+        Ok(Checked { km, r, l, fs, vdc, pwm, limit, hold, bw, cpr, kpv, kpp, kip, vf, series })
+    }
+}
+
+impl Config {
+    /// Validates `p` and precomputes everything the step needs. [`Compensation::Table`]
+    /// needs its table: use [`Config::with_table`].
+    pub fn new(p: &Params<'_>) -> Result<Config, ConfigError> {
+        if p.compensation == Compensation::Table {
+            return Err(ConfigError::Invalid {
+                field: "compensation",
+                value: 0.0,
+                reason: Reason::Other("table compensation needs a correction table: build with Config::with_table"),
+            });
+        }
+        Self::build(p)
+    }
+
+    /// [`Config::new`] for [`Compensation::Table`] (any other compensation ignores the
+    /// table): the table's `full_scale` must be > 0 and its largest entry, scaled to the
+    /// holding current, within the current limit.
+    pub fn with_table(p: &Params<'_>, table: &CorrectionTable) -> Result<Config, ConfigError> {
+        let mut cfg = Self::build(p)?;
+        if p.compensation == Compensation::Table {
+            crate::correction::check_table(table, cfg.holding_current_a, cfg.current_limit_a)?;
+            cfg.table = *table;
+        }
+        Ok(cfg)
+    }
+
+    fn build(p: &Params<'_>) -> Result<Config, ConfigError> {
+        let Checked { km, r, l, fs, vdc, pwm, limit, hold, bw, cpr, kpv, kpp, kip, vf, series } = Checked::new(p)?;
+        let (m, d) = (&p.motor, &p.drive);
+        let ts = 1.0 / pwm;
         let on = p.compensation != Compensation::Off;
         let estimated = p.compensation == Compensation::Estimated && p.mode == Mode::OpenLoop;
         let observer_floor_v = 0.02 * r * hold.max(0.1 * limit);
