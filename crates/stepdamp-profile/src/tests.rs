@@ -313,3 +313,16 @@ fn bad_simulator_keys_name_file_key_value_and_range() {
         assert!(e.contains(want), "{e}\nwant: {want}");
     }
 }
+
+#[test]
+fn a_hostile_name_is_refused_with_file_key_escaped_value_and_rule() {
+    for (name, shows) in [
+        ("m\\n[gcode_macro PWNED]\\ngcode: M112", "\"m\\u{a}[gcode_macro PWNED]\\u{a}gcode: M112\""),
+        ("m\\u001b[2J", "\"m\\u{1b}[2J\""),
+        ("m */ #include <x> /*", "\"m */ #include <x> /*\""),
+    ] {
+        let e = replaced("name = \"patent-motor\"", &format!("name = \"{name}\"")).to_string();
+        assert!(e.starts_with(&format!("m.toml: name = {shows}: ")), "{e}");
+        assert!(e.contains("one printable line") && !e.contains('\n') && !e.contains('\u{1b}'), "{e}");
+    }
+}

@@ -20,8 +20,8 @@ fn invalid(origin: &str, key: &str, value: String, reason: &str) -> ProfileError
 
 /// Every key within its range ([`stepdamp_core::limits`]) and the relations between keys.
 pub(crate) fn check(p: &ProfileData, origin: &str) -> Result<(), ProfileError> {
-    if p.name.trim().is_empty() {
-        return Err(invalid(origin, "name", format!("{:?}", p.name), "must not be empty"));
+    if let Some(why) = crate::name::name_problem(&p.name) {
+        return Err(invalid(origin, "name", crate::name::quoted_name(&p.name), &why));
     }
     let m = &p.motor;
     for (l, v) in [
