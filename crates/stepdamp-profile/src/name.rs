@@ -72,6 +72,18 @@ pub fn name_problem(name: &str) -> Option<String> {
     None
 }
 
+/// The name of a profile derived from one named `base`: `base` followed by `suffix`
+/// (e.g. `" variant 7"`), with `base` cut (ending in `…`) so that the result stays within
+/// [`NAME_MAX_CHARS`]. `suffix` itself must follow the rule.
+pub fn derived_name(base: &str, suffix: &str) -> String {
+    let room = NAME_MAX_CHARS.saturating_sub(suffix.chars().count());
+    if base.chars().count() <= room {
+        return format!("{base}{suffix}");
+    }
+    let cut: String = base.chars().take(room.saturating_sub(1)).collect();
+    format!("{}…{suffix}", cut.trim_end())
+}
+
 /// `name` quoted and escaped for a message: control and formatting characters as
 /// `\u{..}`, at most 80 characters shown (then `…`).
 pub fn quoted_name(name: &str) -> String {
@@ -134,6 +146,15 @@ mod tests {
         assert_eq!(name_problem(" ").unwrap(), "must not be empty");
         let e = name_problem(&"é".repeat(NAME_MAX_CHARS + 1)).unwrap();
         assert!(e.contains("65 characters") && e.contains("at most 64"), "{e}");
+    }
+
+    #[test]
+    fn a_derived_name_stays_within_the_limit_and_keeps_its_suffix() {
+        assert_eq!(derived_name("m", " variant 7"), "m variant 7");
+        let long = "x".repeat(NAME_MAX_CHARS);
+        let d = derived_name(&long, " controller model 123456");
+        assert_eq!(d.chars().count(), NAME_MAX_CHARS);
+        assert!(d.ends_with("x… controller model 123456") && name_problem(&d).is_none(), "{d}");
     }
 
     #[test]
