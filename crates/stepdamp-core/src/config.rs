@@ -4,7 +4,7 @@
 use crate::correction::CorrectionTable;
 use crate::detent::{Harmonic, HarmonicSeries};
 use crate::encoder::Encoder;
-use crate::limits::{self, Limit};
+use crate::limits::{self, Limit, Num32};
 use crate::modulator::Topology;
 use crate::observer::{LoadAngleObserver, ObserverSettings};
 use crate::pi::Pi;
@@ -213,7 +213,7 @@ pub enum ConfigError {
 impl core::fmt::Display for ConfigError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            ConfigError::Invalid { field, value, reason } => write!(f, "{field} = {value}: {reason}"),
+            ConfigError::Invalid { field, value, reason } => write!(f, "{field} = {}: {reason}", Num32(*value)),
             ConfigError::HarmonicOrder { order } => {
                 write!(f, "detent harmonic order {order}: must be in 1..={}", crate::detent::MAX_HARMONIC_ORDER)
             }
@@ -233,6 +233,12 @@ pub enum Reason {
     OutOfRange(&'static Limit),
     /// A relation to another parameter, or a derived value that overflowed.
     Other(&'static str),
+    /// The detent amplitudes sum to the holding torque `Km·I_hold` (N·m) or more
+    /// ([`limits::detent_within_holding_torque`]).
+    DetentAboveHoldingTorque {
+        /// `Km·I_hold` in N·m.
+        holding_torque_nm: f32,
+    },
 }
 
 impl core::fmt::Display for Reason {
@@ -240,6 +246,12 @@ impl core::fmt::Display for Reason {
         match self {
             Reason::OutOfRange(l) => write!(f, "must be in {l}"),
             Reason::Other(s) => f.write_str(s),
+            Reason::DetentAboveHoldingTorque { holding_torque_nm } => write!(
+                f,
+                "the detent amplitudes must sum to less than motor.km_nm_per_a × drive.holding_current_a = {} N·m: \
+                 open loop cannot hold the rotor against a larger detent",
+                Num32(*holding_torque_nm)
+            ),
         }
     }
 }
@@ -407,6 +419,14 @@ impl Checked {
         let kip = non_negative("servo.position_integral_nm_per_rad_s", s.position_integral_nm_per_rad_s)?;
         let vf = within(&limits::VELOCITY_FILTER_HZ, s.velocity_filter_hz)?;
         let series = HarmonicSeries::new(m.detent, 1.0 / km)?;
+        let detent_sum_nm: f32 = m.detent.iter().map(|h| h.amplitude_nm).sum();
+        if !limits::detent_within_holding_torque(f64::from(detent_sum_nm), f64::from(km), f64::from(hold)) {
+            return Err(ConfigError::Invalid {
+                field: "detent.amplitude_nm",
+                value: detent_sum_nm,
+                reason: Reason::DetentAboveHoldingTorque { holding_torque_nm: km * hold },
+            });
+        }
         within(&limits::COMPUTATION_DELAY_PERIODS, f32::from(d.computation_delay_periods))?;
         if p.mode == Mode::Servo && matches!(p.compensation, Compensation::Angle | Compensation::Table) {
             return Err(ConfigError::Invalid {
