@@ -97,7 +97,10 @@ impl Study {
         let plant = plant.validate("plant").map_err(bad)?;
         let controller = controller.validate("controller").map_err(bad)?;
         if !(load.is_finite() && load >= 0.0) {
-            return Err(StudyError::Variant { index, message: format!("load_torque_nm = {load}: must be ≥ 0 N·m") });
+            return Err(StudyError::Variant {
+                index,
+                message: format!("load_torque_nm = {}: must be ≥ 0 N·m", stepdamp_core::limits::Num(load)),
+            });
         }
         Ok(Variant { index, plant, controller, load_torque_nm: load })
     }
