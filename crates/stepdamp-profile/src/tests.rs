@@ -351,3 +351,13 @@ fn a_value_far_outside_its_range_prints_in_short_form() {
     let e = replaced("inertia_kg_m2 = 4.0e-5", "inertia_kg_m2 = 5e-324");
     assert!(e.starts_with("m.toml: motor.inertia_kg_m2 = 5e-324: ") && e.len() < 200, "{e}");
 }
+
+#[test]
+fn a_parse_error_quoting_control_characters_escapes_them() {
+    for (from, to) in
+        [("name = \"patent-motor\"", "name = \"m\u{1b}[2Jx\""), ("pole_pairs = 50", "pole_pairs\u{1b}[31m = 50")]
+    {
+        let e = replaced(from, to);
+        assert!(e.contains("\\u{1b}[") && !e.contains('\u{1b}') && !e.contains('\n'), "{e:?}");
+    }
+}
