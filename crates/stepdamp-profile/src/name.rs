@@ -13,7 +13,10 @@
 pub const NAME_MAX_CHARS: usize = 64;
 
 /// Characters a name may not contain besides control and formatting characters, each
-/// with the format in which it is special.
+/// with the format in which it is special. Allowed on purpose: `(`, `)` (common in motor
+/// names; a G-code comment in parentheses is escaped by the exporter that writes one),
+/// `:` and `=` (without a line break they cannot start a key), `<`, `>`, `&` (SVG and XML
+/// escape them).
 pub const NAME_FORBIDDEN: [(char, &str); 8] = [
     (';', "a comment in G-code and Klipper/INI files"),
     ('#', "a comment in Klipper/INI files and TOML"),
