@@ -87,19 +87,19 @@ typedef struct sd_harmonic {
  */
 typedef struct sd_motor {
   /**
-   * Torque constant `Km` in N·m/A (> 0).
+   * Torque constant `Km` in N·m/A (range: `sd_status_str(SD_ERR_KM)`).
    */
   float km_nm_per_a;
   /**
-   * Rotor teeth / pole pairs `Nr` (1..=1024; 50 for a 1.8° motor).
+   * Rotor teeth / pole pairs `Nr` (50 for a 1.8° motor; range: `sd_status_str(SD_ERR_POLE_PAIRS)`).
    */
   uint16_t pole_pairs;
   /**
-   * Phase resistance `R` in Ω (> 0).
+   * Phase resistance `R` in Ω (range: `sd_status_str(SD_ERR_RESISTANCE)`).
    */
   float resistance_ohm;
   /**
-   * Phase inductance `L` in H (> 0).
+   * Phase inductance `L` in H (range: `sd_status_str(SD_ERR_INDUCTANCE)`).
    */
   float inductance_h;
   /**
@@ -127,11 +127,11 @@ typedef uint32_t sd_topology;
  */
 typedef struct sd_drive {
   /**
-   * DC bus voltage in V (> 0).
+   * DC bus voltage in V (range: `sd_status_str(SD_ERR_BUS_VOLTAGE)`).
    */
   float bus_voltage_v;
   /**
-   * Control and PWM frequency in Hz (> 0; 20 kHz typical): `sd_step()` runs once per period.
+   * Control and PWM frequency in Hz (20 kHz typical; range: `sd_status_str(SD_ERR_PWM_FREQUENCY)`): `sd_step()` runs once per period.
    */
   float pwm_hz;
   /**
@@ -139,11 +139,11 @@ typedef struct sd_drive {
    */
   float holding_current_a;
   /**
-   * Limit of the current vector magnitude in A (> 0).
+   * Limit of the current vector magnitude in A (range: `sd_status_str(SD_ERR_CURRENT_LIMIT)`).
    */
   float current_limit_a;
   /**
-   * Closed current-loop bandwidth in Hz (> 0, below `pwm_hz / 4`).
+   * Closed current-loop bandwidth in Hz (range: `sd_status_str(SD_ERR_CURRENT_LOOP_BANDWIDTH)`).
    */
   float current_loop_bandwidth_hz;
   /**
@@ -173,7 +173,8 @@ typedef struct sd_servo {
    */
   float position_integral_nm_per_rad_s;
   /**
-   * Corner of the encoder velocity low-pass filter in Hz (> 0).
+   * Corner of the encoder velocity low-pass filter in Hz (range:
+   * `sd_status_str(SD_ERR_SERVO_VELOCITY_FILTER)`).
    */
   float velocity_filter_hz;
 } sd_servo;
@@ -191,7 +192,8 @@ typedef struct sd_params {
    */
   struct sd_drive drive;
   /**
-   * Encoder counts per mechanical revolution (1..=2²⁰; used in servo mode).
+   * Encoder counts per mechanical revolution (used in servo mode; range:
+   * `sd_status_str(SD_ERR_ENCODER_COUNTS)`).
    */
   uint32_t encoder_counts_per_rev;
   /**
@@ -432,92 +434,93 @@ typedef struct sd_config_info {
 #define SD_ERR_DUPLICATE_HARMONIC 11
 
 /**
- * `motor.km_nm_per_a`: must be finite and > 0 (and 1/Km finite).
+ * `motor.km_nm_per_a` is outside the range the core enforces (`sd_status_str()` states it).
  */
 #define SD_ERR_KM 12
 
 /**
- * `motor.pole_pairs`: must be in 1..=1024.
+ * `motor.pole_pairs` is outside the range the core enforces (`sd_status_str()` states it).
  */
 #define SD_ERR_POLE_PAIRS 13
 
 /**
- * `motor.resistance_ohm`: must be finite and > 0.
+ * `motor.resistance_ohm` is outside the range the core enforces (`sd_status_str()` states it).
  */
 #define SD_ERR_RESISTANCE 14
 
 /**
- * `motor.inductance_h`: must be finite and > 0.
+ * `motor.inductance_h` is outside the range the core enforces (`sd_status_str()` states it).
  */
 #define SD_ERR_INDUCTANCE 15
 
 /**
- * `motor.coulomb_friction_nm`: must be finite and ≥ 0.
+ * `motor.coulomb_friction_nm` is outside the range the core enforces (`sd_status_str()` states it).
  */
 #define SD_ERR_COULOMB_FRICTION 16
 
 /**
- * `drive.bus_voltage_v`: must be finite and > 0.
+ * `drive.bus_voltage_v` is outside the range the core enforces (`sd_status_str()` states it).
  */
 #define SD_ERR_BUS_VOLTAGE 17
 
 /**
- * `drive.pwm_hz`: must be finite and > 0.
+ * `drive.pwm_hz` is outside the range the core enforces (`sd_status_str()` states it).
  */
 #define SD_ERR_PWM_FREQUENCY 18
 
 /**
- * `drive.current_limit_a`: must be finite and > 0.
+ * `drive.current_limit_a` is outside the range the core enforces (`sd_status_str()` states it).
  */
 #define SD_ERR_CURRENT_LIMIT 19
 
 /**
- * `drive.holding_current_a`: must be finite, ≥ 0 and ≤ the current limit.
+ * `drive.holding_current_a` is outside the range the core enforces (`sd_status_str()` states it).
  */
 #define SD_ERR_HOLDING_CURRENT 20
 
 /**
- * `drive.current_loop_bandwidth_hz`: must be finite, > 0 and below `pwm_hz / 4`.
+ * `drive.current_loop_bandwidth_hz` is outside the range the core enforces (`sd_status_str()` states it).
  */
 #define SD_ERR_CURRENT_LOOP_BANDWIDTH 21
 
 /**
- * `drive.computation_delay_periods`: must be 0 or 1.
+ * `drive.computation_delay_periods` is outside the range the core enforces (`sd_status_str()` states it).
  */
 #define SD_ERR_COMPUTATION_DELAY 22
 
 /**
- * `encoder_counts_per_rev`: must be in 1..=1048576.
+ * `encoder_counts_per_rev` is outside the range the core enforces (`sd_status_str()` states it).
  */
 #define SD_ERR_ENCODER_COUNTS 23
 
 /**
- * `servo.velocity_nm_s_per_rad`: must be finite and ≥ 0.
+ * `servo.velocity_nm_s_per_rad` is outside the range the core enforces (`sd_status_str()` states it).
  */
 #define SD_ERR_SERVO_VELOCITY_GAIN 24
 
 /**
- * `servo.position_nm_per_rad`: must be finite and ≥ 0.
+ * `servo.position_nm_per_rad` is outside the range the core enforces (`sd_status_str()` states it).
  */
 #define SD_ERR_SERVO_POSITION_GAIN 25
 
 /**
- * `servo.position_integral_nm_per_rad_s`: must be finite and ≥ 0.
+ * `servo.position_integral_nm_per_rad_s` is outside the range the core enforces (`sd_status_str()` states it).
  */
 #define SD_ERR_SERVO_INTEGRAL_GAIN 26
 
 /**
- * `servo.velocity_filter_hz`: must be finite and > 0.
+ * `servo.velocity_filter_hz` is outside the range the core enforces (`sd_status_str()` states it).
  */
 #define SD_ERR_SERVO_VELOCITY_FILTER 27
 
 /**
- * A detent amplitude is negative or not finite, or too large for `Km`.
+ * A detent amplitude is outside its range, or the amplitudes sum to the holding torque
+ * `Km·I_hold` or more (`sd_status_str()` states both bounds).
  */
 #define SD_ERR_DETENT_AMPLITUDE 28
 
 /**
- * A detent phase is not finite.
+ * A detent phase is outside its range (`sd_status_str()` states it).
  */
 #define SD_ERR_DETENT_PHASE 29
 

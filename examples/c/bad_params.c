@@ -69,6 +69,17 @@ int main(void) {
     table[1].order = 1;
     expect("a harmonic order given twice", sd_config_init(&p, &cfg), SD_ERR_DUPLICATE_HARMONIC);
 
+    /* A 5 N·m detent against 0.3 N·m/A × 1.9 A = 0.57 N·m of holding torque: refused. */
+    p = reference();
+    memset(table, 0, sizeof table);
+    table[0].order = 4;
+    table[0].amplitude_nm = 5.0f;
+    p.motor.detent = table;
+    p.motor.detent_count = 1;
+    expect("detent beyond the holding torque", sd_config_init(&p, &cfg), SD_ERR_DETENT_AMPLITUDE);
+    table[0].amplitude_nm = 0.5f;
+    expect("detent within the holding torque", sd_config_init(&p, &cfg), SD_OK);
+
     p = reference();
     p.mode = 7;
     expect("mode not an SD_MODE_* value", sd_config_init(&p, &cfg), SD_ERR_INVALID_MODE);

@@ -4,7 +4,7 @@
 use crate::correction::CorrectionTable;
 use crate::detent::{Harmonic, HarmonicSeries};
 use crate::encoder::Encoder;
-use crate::limits::{self, Limit};
+use crate::limits::{self, Limit, Num32};
 use crate::modulator::Topology;
 use crate::observer::{LoadAngleObserver, ObserverSettings};
 use crate::pi::Pi;
@@ -213,7 +213,7 @@ pub enum ConfigError {
 impl core::fmt::Display for ConfigError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            ConfigError::Invalid { field, value, reason } => write!(f, "{field} = {value}: {reason}"),
+            ConfigError::Invalid { field, value, reason } => write!(f, "{field} = {}: {reason}", Num32(*value)),
             ConfigError::HarmonicOrder { order } => {
                 write!(f, "detent harmonic order {order}: must be in 1..={}", crate::detent::MAX_HARMONIC_ORDER)
             }
@@ -233,6 +233,12 @@ pub enum Reason {
     OutOfRange(&'static Limit),
     /// A relation to another parameter, or a derived value that overflowed.
     Other(&'static str),
+    /// The detent amplitudes sum to the holding torque `Km·I_hold` (N·m) or more
+    /// ([`limits::detent_within_holding_torque`]).
+    DetentAboveHoldingTorque {
+        /// `Km·I_hold` in N·m.
+        holding_torque_nm: f32,
+    },
 }
 
 impl core::fmt::Display for Reason {
@@ -240,6 +246,12 @@ impl core::fmt::Display for Reason {
         match self {
             Reason::OutOfRange(l) => write!(f, "must be in {l}"),
             Reason::Other(s) => f.write_str(s),
+            Reason::DetentAboveHoldingTorque { holding_torque_nm } => write!(
+                f,
+                "the detent amplitudes must sum to less than motor.km_nm_per_a × drive.holding_current_a = {} N·m: \
+                 open loop cannot hold the rotor against a larger detent",
+                Num32(*holding_torque_nm)
+            ),
         }
     }
 }
@@ -343,33 +355,30 @@ fn non_negative(field: &'static str, v: f32) -> Result<f32, ConfigError> {
     }
 }
 
-impl Config {
-    /// Validates `p` and precomputes everything the step needs. [`Compensation::Table`]
-    /// needs its table: use [`Config::with_table`].
-    pub fn new(p: &Params<'_>) -> Result<Config, ConfigError> {
-        if p.compensation == Compensation::Table {
-            return Err(ConfigError::Invalid {
-                field: "compensation",
-                value: 0.0,
-                reason: Reason::Other("table compensation needs a correction table: build with Config::with_table"),
-            });
-        }
-        Self::build(p)
-    }
+/// The inputs of [`Config::build`], each checked against its limit: the first stage of
+/// building a [`Config`] (the second derives what the step needs from these).
+struct Checked {
+    km: f32,
+    r: f32,
+    l: f32,
+    fs: f32,
+    vdc: f32,
+    pwm: f32,
+    limit: f32,
+    hold: f32,
+    bw: f32,
+    cpr: u32,
+    kpv: f32,
+    kpp: f32,
+    kip: f32,
+    vf: f32,
+    series: HarmonicSeries,
+}
 
-    /// [`Config::new`] for [`Compensation::Table`] (any other compensation ignores the
-    /// table): the table's `full_scale` must be > 0 and its largest entry, scaled to the
-    /// holding current, within the current limit.
-    pub fn with_table(p: &Params<'_>, table: &CorrectionTable) -> Result<Config, ConfigError> {
-        let mut cfg = Self::build(p)?;
-        if p.compensation == Compensation::Table {
-            crate::correction::check_table(table, cfg.holding_current_a, cfg.current_limit_a)?;
-            cfg.table = *table;
-        }
-        Ok(cfg)
-    }
-
-    fn build(p: &Params<'_>) -> Result<Config, ConfigError> {
+impl Checked {
+    /// Checks every input of `p` against its limit (in profile order: the first
+    /// offending parameter is reported) and the combinations the limits cannot express.
+    fn new(p: &Params<'_>) -> Result<Checked, ConfigError> {
         let m = &p.motor;
         let d = &p.drive;
         let km = within(&limits::KM_NM_PER_A, m.km_nm_per_a)?;
@@ -409,8 +418,15 @@ impl Config {
         let kpp = non_negative("servo.position_nm_per_rad", s.position_nm_per_rad)?;
         let kip = non_negative("servo.position_integral_nm_per_rad_s", s.position_integral_nm_per_rad_s)?;
         let vf = within(&limits::VELOCITY_FILTER_HZ, s.velocity_filter_hz)?;
-        let ts = 1.0 / pwm;
         let series = HarmonicSeries::new(m.detent, 1.0 / km)?;
+        let detent_sum_nm: f32 = m.detent.iter().map(|h| h.amplitude_nm).sum();
+        if !limits::detent_within_holding_torque(f64::from(detent_sum_nm), f64::from(km), f64::from(hold)) {
+            return Err(ConfigError::Invalid {
+                field: "detent.amplitude_nm",
+                value: detent_sum_nm,
+                reason: Reason::DetentAboveHoldingTorque { holding_torque_nm: km * hold },
+            });
+        }
         within(&limits::COMPUTATION_DELAY_PERIODS, f32::from(d.computation_delay_periods))?;
         if p.mode == Mode::Servo && matches!(p.compensation, Compensation::Angle | Compensation::Table) {
             return Err(ConfigError::Invalid {
@@ -419,6 +435,40 @@ impl Config {
                 reason: Reason::Other("angle and table compensation are open-loop laws (use patent in servo mode)"),
             });
         }
+        Ok(Checked { km, r, l, fs, vdc, pwm, limit, hold, bw, cpr, kpv, kpp, kip, vf, series })
+    }
+}
+
+impl Config {
+    /// Validates `p` and precomputes everything the step needs. [`Compensation::Table`]
+    /// needs its table: use [`Config::with_table`].
+    pub fn new(p: &Params<'_>) -> Result<Config, ConfigError> {
+        if p.compensation == Compensation::Table {
+            return Err(ConfigError::Invalid {
+                field: "compensation",
+                value: 0.0,
+                reason: Reason::Other("table compensation needs a correction table: build with Config::with_table"),
+            });
+        }
+        Self::build(p)
+    }
+
+    /// [`Config::new`] for [`Compensation::Table`] (any other compensation ignores the
+    /// table): the table's `full_scale` must be > 0 and its largest entry, scaled to the
+    /// holding current, within the current limit.
+    pub fn with_table(p: &Params<'_>, table: &CorrectionTable) -> Result<Config, ConfigError> {
+        let mut cfg = Self::build(p)?;
+        if p.compensation == Compensation::Table {
+            crate::correction::check_table(table, cfg.holding_current_a, cfg.current_limit_a)?;
+            cfg.table = *table;
+        }
+        Ok(cfg)
+    }
+
+    fn build(p: &Params<'_>) -> Result<Config, ConfigError> {
+        let Checked { km, r, l, fs, vdc, pwm, limit, hold, bw, cpr, kpv, kpp, kip, vf, series } = Checked::new(p)?;
+        let (m, d) = (&p.motor, &p.drive);
+        let ts = 1.0 / pwm;
         let on = p.compensation != Compensation::Off;
         let estimated = p.compensation == Compensation::Estimated && p.mode == Mode::OpenLoop;
         let observer_floor_v = 0.02 * r * hold.max(0.1 * limit);

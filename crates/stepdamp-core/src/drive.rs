@@ -3,7 +3,7 @@
 use crate::angle::{MicrostepAccumulator, Position, UNITS_PER_ELECTRICAL_REV};
 use crate::config::{Compensation, Config, Mode};
 use crate::encoder::EncoderState;
-use crate::modulator::LegDuties;
+use crate::modulator::{LegDuties, Modulated};
 use crate::observer::{ObserverInput, ObserverState};
 use crate::park::{Ab, Dq, inverse_park, park};
 use crate::trig::{sin_cos_rad, sin_cos_turn};
@@ -142,17 +142,7 @@ impl State {
 /// command angle and the encoder keep running. The next good sample resumes control.
 #[inline]
 pub fn step(cfg: &Config, st: &mut State, m: &Measurement) -> Output {
-    let lim = cfg.current_sample_limit_a;
-    let i_ab = if m.i_a_a.is_finite() && m.i_b_a.is_finite() && m.i_a_a.abs() <= lim && m.i_b_a.abs() <= lim {
-        let x = Ab { a: m.i_a_a, b: m.i_b_a };
-        st.last_current = x;
-        st.consecutive_sample_faults = 0;
-        x
-    } else {
-        st.sample_faults = st.sample_faults.saturating_add(1);
-        st.consecutive_sample_faults = st.consecutive_sample_faults.saturating_add(1);
-        st.last_current
-    };
+    let i_ab = accept_sample(cfg, st, m);
     let theta_cmd = st.command.position;
 
     // The encoder is read in both modes; open loop only records it.
@@ -168,8 +158,48 @@ pub fn step(cfg: &Config, st: &mut State, m: &Measurement) -> Output {
     // The low 32 bits are the electrical angle as a fraction of a turn.
     let (sin, cos) = sin_cos_turn(theta_ctl.0 as u32);
     let i_dq = park(i_ab, sin, cos);
-    // Where the compensation is evaluated: θ_cmd (patent, open loop), θ_fb (servo), or the
-    // observer's rotor angle θc − δ̂ (estimated, open loop).
+    let comp_a = compensation_current(cfg, st, i_ab, sin, cos);
+    let i_dq_cmd = current_command(cfg, st, theta_cmd, theta_fb, comp_a, sin, cos);
+    let (v_ab, modulated) = current_loop(cfg, st, i_dq_cmd, i_dq, sin, cos);
+
+    st.command.advance();
+    Output {
+        duties: modulated.duties,
+        signals: Signals {
+            theta_cmd,
+            theta_fb,
+            omega_fb_rad_s: st.encoder.velocity_rad_s,
+            i_dq,
+            i_dq_cmd,
+            v_ab,
+            voltage_scale: modulated.scale,
+        },
+    }
+}
+
+/// Stage 1, the sample: the measured phase currents if they are finite and within
+/// `Config::current_sample_limit_a`, else the last good sample (counted as a fault).
+#[inline(always)]
+fn accept_sample(cfg: &Config, st: &mut State, m: &Measurement) -> Ab {
+    let lim = cfg.current_sample_limit_a;
+    if m.i_a_a.is_finite() && m.i_b_a.is_finite() && m.i_a_a.abs() <= lim && m.i_b_a.abs() <= lim {
+        let x = Ab { a: m.i_a_a, b: m.i_b_a };
+        st.last_current = x;
+        st.consecutive_sample_faults = 0;
+        x
+    } else {
+        st.sample_faults = st.sample_faults.saturating_add(1);
+        st.consecutive_sample_faults = st.consecutive_sample_faults.saturating_add(1);
+        st.last_current
+    }
+}
+
+/// Stage 2, the compensation current in A (q axis, before the law limits it), evaluated
+/// where the compensation angle is: θ_cmd (patent, open loop), θ_fb (servo), or the
+/// observer's rotor angle θc − δ̂ (estimated, open loop; this also runs the observer).
+/// `sin`, `cos` are those of the control angle.
+#[inline(always)]
+fn compensation_current(cfg: &Config, st: &mut State, i_ab: Ab, sin: f32, cos: f32) -> f32 {
     let omega_e = st.speed_cmd_rad_s * f32::from(cfg.pole_pairs);
     let (cs, cc, gain) = match &cfg.observer {
         Some(obs) => {
@@ -194,10 +224,23 @@ pub fn step(cfg: &Config, st: &mut State, m: &Measurement) -> Output {
     // harmonic order. Applied where
     // the angle is the rotor's own (servo, estimated); zero in the patent's open loop.
     let (series, slope, curv) = cfg.compensation.eval_with_derivatives(cs, cc);
-    let comp_a =
-        gain * (series + cfg.compensation_lead_s * omega_e * (slope + cfg.compensation_lead2_s * omega_e * curv));
+    gain * (series + cfg.compensation_lead_s * omega_e * (slope + cfg.compensation_lead2_s * omega_e * curv))
+}
 
-    let i_dq_cmd = match cfg.mode {
+/// Stage 3, the control law: the d/q current commands in A of the mode and compensation
+/// (open loop: holding current on d and the compensation on q, or the angle or table
+/// law; servo: [`servo_law`]).
+#[inline(always)]
+fn current_command(
+    cfg: &Config,
+    st: &mut State,
+    theta_cmd: Position,
+    theta_fb: Position,
+    comp_a: f32,
+    sin: f32,
+    cos: f32,
+) -> Dq {
+    match cfg.mode {
         Mode::OpenLoop => match cfg.compensation_kind {
             Compensation::Angle => crate::correction::angle_law(cfg.holding_current_a, comp_a),
             Compensation::Table => crate::correction::table_law(
@@ -214,9 +257,14 @@ pub fn step(cfg: &Config, st: &mut State, m: &Measurement) -> Output {
             }
         },
         Mode::Servo => servo_law(cfg, st, theta_cmd, theta_fb, comp_a),
-    };
+    }
+}
 
-    // Current loop: PI on d and q, inverse Park, limit the vector on the bus, anti-windup.
+/// Stage 4, the current loop: PI on d and q, inverse Park, limit the vector on the bus,
+/// anti-windup, and hand the applied voltage to the observer. Returns the applied winding
+/// voltages in V and the modulator's duties and scale.
+#[inline(always)]
+fn current_loop(cfg: &Config, st: &mut State, i_dq_cmd: Dq, i_dq: Dq, sin: f32, cos: f32) -> (Ab, Modulated) {
     let e = Dq { d: i_dq_cmd.d - i_dq.d, q: i_dq_cmd.q - i_dq.q };
     // With the observer, the integral gain `Ki = R·ωc` follows the resistance it measured
     // at standstill, so the PI's zero keeps cancelling the winding pole.
@@ -235,20 +283,7 @@ pub fn step(cfg: &Config, st: &mut State, m: &Measurement) -> Output {
     if let Some(obs) = &cfg.observer {
         obs.record(&mut st.observer, v_ab, i_dq_cmd);
     }
-
-    st.command.advance();
-    Output {
-        duties: modulated.duties,
-        signals: Signals {
-            theta_cmd,
-            theta_fb,
-            omega_fb_rad_s: st.encoder.velocity_rad_s,
-            i_dq,
-            i_dq_cmd,
-            v_ab,
-            voltage_scale: modulated.scale,
-        },
-    }
+    (v_ab, modulated)
 }
 
 /// The period of a declared current-sensor fault: zero volts, no integration.

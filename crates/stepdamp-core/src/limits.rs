@@ -62,16 +62,30 @@ pub struct Num(pub f64);
 
 impl fmt::Display for Num {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let v = self.0;
-        if !v.is_finite() || v == 0.0 {
-            return write!(f, "{v}");
-        }
-        // Both forms are the shortest that round-trip; choose by length without allocating.
-        let plain = Len::of(format_args!("{v}"));
-        let exp = Len::of(format_args!("{v:e}"));
-        let a = v.abs();
-        if !(1e-2..1e5).contains(&a) && exp < plain { write!(f, "{v:e}") } else { write!(f, "{v}") }
+        short(f, self.0, self.0.abs())
     }
+}
+
+/// [`Num`] for an `f32` (a controller parameter): the shortest form that reads back as the
+/// same `f32` (`0.3`, not the `0.30000001192092896` of its `f64` widening).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Num32(pub f32);
+
+impl fmt::Display for Num32 {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        short(f, self.0, f64::from(self.0.abs()))
+    }
+}
+
+/// `v` plain or in exponent form, whichever [`Num`] chooses; `abs` is `|v|` as `f64`.
+fn short<T: fmt::Display + fmt::LowerExp>(f: &mut fmt::Formatter<'_>, v: T, abs: f64) -> fmt::Result {
+    if !abs.is_finite() || abs == 0.0 {
+        return write!(f, "{v}");
+    }
+    // Both forms are the shortest that round-trip; choose by length without allocating.
+    let plain = Len::of(format_args!("{v}"));
+    let exp = Len::of(format_args!("{v:e}"));
+    if !(1e-2..1e5).contains(&abs) && exp < plain { write!(f, "{v:e}") } else { write!(f, "{v}") }
 }
 
 /// Counts the bytes a `format_args!` would print.
@@ -191,6 +205,27 @@ pub const DETENT_ORDER: Limit = closed(
     "the controller's series holds orders up to MAX_HARMONIC_ORDER; measured detent spectra end near 8",
 );
 
+/// Largest sum of the detent amplitudes `Σ A_k`, as a fraction of the open loop's holding
+/// torque `Km·I_hold`: 1 (see [`detent_within_holding_torque`]).
+///
+/// Why: open loop holds the rotor by the magnet torque of the holding current alone, which
+/// is at most `Km·I_hold` (`τ = −Km·I_hold·sin(Nr·δ)`, largest at a load angle `δ` of a
+/// quarter electrical turn; docs/design.md#the-plant). The detent torque
+/// `Σ A_k·sin(k·Nr·θ + φ_k)` reaches `Σ A_k` at some rotor angle for some phases. Where it
+/// exceeds the holding torque no load angle balances it: the rotor is pulled to a detent
+/// position and the open loop skips, whatever the compensation. So a profile beyond it
+/// describes a motor that cannot run in open loop at that current (a unit mistake, or the
+/// detent identified with a wrong sign or gain). It is a necessary condition only: real
+/// motors have detent torques of a few percent of the holding torque (the presets 4–9 %).
+pub const DETENT_PER_HOLDING_TORQUE: f64 = 1.0;
+
+/// Whether detent amplitudes summing to `sum_amplitude_nm` (N·m) stay below the holding
+/// torque `km_nm_per_a · holding_current_a` ([`DETENT_PER_HOLDING_TORQUE`] of it). The
+/// controller, the profile reader and the C library judge with this one function.
+pub fn detent_within_holding_torque(sum_amplitude_nm: f64, km_nm_per_a: f64, holding_current_a: f64) -> bool {
+    sum_amplitude_nm < DETENT_PER_HOLDING_TORQUE * km_nm_per_a * holding_current_a
+}
+
 /// DC bus voltage.
 pub const BUS_VOLTAGE_V: Limit =
     closed("drive.bus_voltage_v", 1.0, 1000.0, "V", "stepper drives run from 5 V to about 300 V (mains-rectified)");
@@ -306,6 +341,10 @@ mod tests {
             assert_eq!(Num(v).to_string(), s);
         }
         assert_eq!(Num(f64::INFINITY).to_string(), "inf");
+        assert_eq!(Num(1e-300).to_string(), "1e-300");
+        for (v, s) in [(0.3f32, "0.3"), (f32::MAX, "3.4028235e38"), (1e-30, "1e-30"), (20_000.0, "20000")] {
+            assert_eq!(Num32(v).to_string(), s);
+        }
     }
 
     #[test]
@@ -321,6 +360,16 @@ mod tests {
         assert!(!KM_NM_PER_A.contains(50.000_001) && !KM_NM_PER_A.contains(f64::NAN));
         assert!(!HOLDING_CURRENT_A.contains(0.0) && HOLDING_CURRENT_A.contains(1e-9));
         assert!(!INERTIA_KG_M2.contains(f64::INFINITY) && !INERTIA_KG_M2.contains(1e-308));
+    }
+
+    #[test]
+    fn a_detent_at_or_above_the_holding_torque_is_refused() {
+        // Km·I_hold = 0.3 × 1.9 = 0.57 N·m.
+        assert!(detent_within_holding_torque(0.04, 0.3, 1.9));
+        assert!(detent_within_holding_torque(0.56, 0.3, 1.9));
+        assert!(!detent_within_holding_torque(0.57, 0.3, 1.9));
+        assert!(!detent_within_holding_torque(5.0, 0.3, 1.9));
+        assert!(!detent_within_holding_torque(f64::NAN, 0.3, 1.9));
     }
 
     #[test]

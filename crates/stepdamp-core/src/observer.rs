@@ -48,8 +48,8 @@
 //! (single precision throughout, FPU only: `atanf`'s polynomial in `f32`, checked by
 //! `firmware/qemu-m4/check-symbols.sh`), one `libm::sqrtf`, about 60 flops per period;
 //! the step adds one [`crate::trig::sin_cos_rad`] of `δ̂`. About 580 instructions of the
-//! estimated-angle step on the Cortex-M4F (`firmware/qemu-m4/instructions.txt`: 1,087
-//! against 506 for the patent's open loop).
+//! estimated-angle step on the Cortex-M4F (the medians in `firmware/qemu-m4/instructions.txt`:
+//! 1,094 against 514 for the patent's open loop).
 
 use crate::lowpass::LowPass;
 use crate::park::{Ab, Dq};
@@ -158,6 +158,24 @@ pub struct ObserverState {
     pub command_steady_periods: u16,
 }
 
+impl ObserverState {
+    /// Every estimate and filter state is finite and `K̂m > 0` (else the observer
+    /// restarts).
+    #[inline(always)]
+    fn is_sound(&self) -> bool {
+        self.delta_rad.is_finite()
+            && self.residual_power_v2.is_finite()
+            && self.swing_power_rad2.is_finite()
+            && self.e_dq_slow.d.is_finite()
+            && self.e_dq_slow.q.is_finite()
+            && self.e_dq.d.is_finite()
+            && self.e_dq.q.is_finite()
+            && self.r_hat_ohm.is_finite()
+            && self.km_hat.is_finite()
+            && self.km_hat > 0.0
+    }
+}
+
 impl LoadAngleObserver {
     /// An observer for the winding, drive timing and tuning in `s` (see
     /// [`ObserverSettings`]), behind a first-order current loop.
@@ -216,28 +234,58 @@ impl LoadAngleObserver {
     /// Takes this period's inputs (see [`ObserverInput`]) and returns the load-angle
     /// estimate `δ̂`, electrical rad. Call [`LoadAngleObserver::record`] with the voltage
     /// computed in this period afterwards.
+    ///
+    /// Stages: the first period only starts the histories; then the back-EMF of the last
+    /// period through both filters ([`Self::filter_back_emf`]); at standstill the
+    /// resistance trim ([`Self::trim_resistance`]), while running the angle and `K̂m`
+    /// ([`Self::estimate_angle`]); a state that went non-finite restarts.
     #[inline]
     pub fn update(&self, st: &mut ObserverState, input: &ObserverInput) -> f32 {
-        let ObserverInput { current: i, sin, cos, dtheta_e_rad: dtheta_e, speed_rad_s } = *input;
-        let direction = if speed_rad_s > 0.0 {
+        let direction = if input.speed_rad_s > 0.0 {
             1.0
-        } else if speed_rad_s < 0.0 {
+        } else if input.speed_rad_s < 0.0 {
             -1.0
         } else {
             0.0
         };
         if !st.started {
-            st.started = true;
-            st.last_current = i;
-            // The configured values at power-on; what a restart kept otherwise.
-            if st.r_hat_ohm <= 0.0 {
-                st.r_hat_ohm = self.r_ohm;
-            }
-            if st.km_hat <= 0.0 {
-                st.km_hat = self.km;
-            }
+            self.start(st, input.current);
             return 0.0;
         }
+        self.filter_back_emf(st, input);
+        if direction == 0.0 {
+            self.trim_resistance(st);
+            st.delta_rad = 0.0;
+        } else {
+            self.estimate_angle(st, direction, input.speed_rad_s);
+        }
+        if !st.is_sound() {
+            self.restart(st);
+        }
+        st.delta_rad
+    }
+
+    /// The first period (at power-on or after a restart): no history yet, so only the
+    /// current sample is kept, and `R̂`, `K̂m` start from the configured values (a restart
+    /// kept the learnt ones).
+    #[inline(always)]
+    fn start(&self, st: &mut ObserverState, i: Ab) {
+        st.started = true;
+        st.last_current = i;
+        if st.r_hat_ohm <= 0.0 {
+            st.r_hat_ohm = self.r_ohm;
+        }
+        if st.km_hat <= 0.0 {
+            st.km_hat = self.km;
+        }
+    }
+
+    /// The back-EMF `ê` of the last period in the `θc` frame at mid-period (the module's
+    /// winding equations), through the fast and slow filters, and the power of the fast
+    /// filter's residual.
+    #[inline(always)]
+    fn filter_back_emf(&self, st: &mut ObserverState, input: &ObserverInput) {
+        let ObserverInput { current: i, sin, cos, dtheta_e_rad: dtheta_e, .. } = *input;
         // `& 1`: delay_periods is 0 or 1 (see `new`), and the mask lets the compiler drop the
         // bounds check (and its panic path) from the step.
         let v = st.voltage_history[usize::from(self.delay_periods & 1)];
@@ -262,66 +310,58 @@ impl LoadAngleObserver {
         self.slow.update(&mut st.e_dq_slow.q, eq);
         let (rd, rq) = (ed - st.e_dq.d, eq - st.e_dq.q);
         self.slow.update(&mut st.residual_power_v2, rd * rd + rq * rq);
-        if direction == 0.0 {
-            // Standstill: no back-EMF, so what remains along the current is resistance
-            // error; trimmed once the current has settled on its command, which the loop
-            // does within `settle_periods` of the command's last change.
-            // A rotor still settling after a stop makes back-EMF too, mostly across the
-            // current (δ is small); a resistance error makes it only along the current. So
-            // trim only while the fast back-EMF across the current is within the floor plus
-            // three standard deviations of the fast filter's noise (sensor noise must not
-            // stop the trim).
-            // Only the command and the filtered back-EMF enter, never the sample: with the
-            // sample, its noise (which the loop's reaction puts into the voltage too) made
-            // both the gate and the product `ê·i` biased, and 20 mA of noise moved R̂ enough
-            // to make the estimate worse than θ_cmd at the lowest resonance.
-            let cmd = st.command_history[0];
-            let settled = st.command_steady_periods >= self.settle_periods;
-            let c2 = cmd.d * cmd.d + cmd.q * cmd.q;
-            let across = st.e_dq.q * cmd.d - st.e_dq.d * cmd.q;
-            let quiet = self.e_floor_v * self.e_floor_v + 9.0 * self.fast_noise_gain * st.residual_power_v2;
-            if settled && c2 > 1e-4 && across * across < quiet * c2 {
-                let de = (st.e_dq.d * cmd.d + st.e_dq.q * cmd.q) / c2;
-                st.r_hat_ohm = crate::bound(st.r_hat_ohm + self.r_trim_gain * de, 0.25 * self.r_ohm, 4.0 * self.r_ohm);
-            }
-            st.delta_rad = 0.0;
-        } else {
-            let (d, q) = (direction * st.e_dq.d, direction * st.e_dq.q);
-            let (ds, qs) = (direction * st.e_dq_slow.d, direction * st.e_dq_slow.q);
-            let fast = libm::atan2f(d, q);
-            let slow = libm::atan2f(ds, qs);
-            let e2 = d * d + q * q;
-            let swing = fast - slow;
-            self.slow.update(&mut st.swing_power_rad2, swing * swing);
-            let noise = self.fast_noise_gain * st.residual_power_v2 / crate::at_least(e2, 1e-12);
-            st.fast_weight = crate::bound(1.0 - noise / crate::at_least(st.swing_power_rad2, 1e-12), 0.0, 1.0);
-            // Weak back-EMF at low speed: shrink towards the patent's law (δ = 0).
-            let w = e2 / (e2 + self.e_floor_v * self.e_floor_v);
-            // `--cfg stepdamp_ablate_load_angle` (scripts/ablation.sh only, never a drive):
-            // everything else runs, but the compensation is evaluated at θ_cmd.
-            st.delta_rad = if cfg!(stepdamp_ablate_load_angle) { 0.0 } else { w * (slow + st.fast_weight * swing) };
-            // Gate on the back-EMF the command implies (a transient |ê| at a low command
-            // speed would make the ratio explode), and bound each sample.
-            let speed = speed_rad_s.abs();
-            if self.km * speed > KM_MIN_EMF_FLOORS * self.e_floor_v {
-                let ratio = crate::bound(libm::sqrtf(e2) / speed, 0.5 * self.km, 2.0 * self.km);
-                self.km_filter.update(&mut st.km_hat, ratio);
-            }
+    }
+
+    /// Standstill: no back-EMF, so what remains along the current is resistance error;
+    /// trimmed once the current has settled on its command, which the loop does within
+    /// `settle_periods` of the command's last change.
+    #[inline(always)]
+    fn trim_resistance(&self, st: &mut ObserverState) {
+        // A rotor still settling after a stop makes back-EMF too, mostly across the
+        // current (δ is small); a resistance error makes it only along the current. So
+        // trim only while the fast back-EMF across the current is within the floor plus
+        // three standard deviations of the fast filter's noise (sensor noise must not
+        // stop the trim).
+        // Only the command and the filtered back-EMF enter, never the sample: with the
+        // sample, its noise (which the loop's reaction puts into the voltage too) made
+        // both the gate and the product `ê·i` biased, and 20 mA of noise moved R̂ enough
+        // to make the estimate worse than θ_cmd at the lowest resonance.
+        let cmd = st.command_history[0];
+        let settled = st.command_steady_periods >= self.settle_periods;
+        let c2 = cmd.d * cmd.d + cmd.q * cmd.q;
+        let across = st.e_dq.q * cmd.d - st.e_dq.d * cmd.q;
+        let quiet = self.e_floor_v * self.e_floor_v + 9.0 * self.fast_noise_gain * st.residual_power_v2;
+        if settled && c2 > 1e-4 && across * across < quiet * c2 {
+            let de = (st.e_dq.d * cmd.d + st.e_dq.q * cmd.q) / c2;
+            st.r_hat_ohm = crate::bound(st.r_hat_ohm + self.r_trim_gain * de, 0.25 * self.r_ohm, 4.0 * self.r_ohm);
         }
-        if !(st.delta_rad.is_finite()
-            && st.residual_power_v2.is_finite()
-            && st.swing_power_rad2.is_finite()
-            && st.e_dq_slow.d.is_finite()
-            && st.e_dq_slow.q.is_finite()
-            && st.e_dq.d.is_finite()
-            && st.e_dq.q.is_finite()
-            && st.r_hat_ohm.is_finite()
-            && st.km_hat.is_finite()
-            && st.km_hat > 0.0)
-        {
-            self.restart(st);
+    }
+
+    /// Running (`direction` ±1, the sign of `speed_rad_s`): the load angle `δ̂` from the
+    /// blend of the fast and slow back-EMF angles, and `K̂m` from the back-EMF's magnitude.
+    #[inline(always)]
+    fn estimate_angle(&self, st: &mut ObserverState, direction: f32, speed_rad_s: f32) {
+        let (d, q) = (direction * st.e_dq.d, direction * st.e_dq.q);
+        let (ds, qs) = (direction * st.e_dq_slow.d, direction * st.e_dq_slow.q);
+        let fast = libm::atan2f(d, q);
+        let slow = libm::atan2f(ds, qs);
+        let e2 = d * d + q * q;
+        let swing = fast - slow;
+        self.slow.update(&mut st.swing_power_rad2, swing * swing);
+        let noise = self.fast_noise_gain * st.residual_power_v2 / crate::at_least(e2, 1e-12);
+        st.fast_weight = crate::bound(1.0 - noise / crate::at_least(st.swing_power_rad2, 1e-12), 0.0, 1.0);
+        // Weak back-EMF at low speed: shrink towards the patent's law (δ = 0).
+        let w = e2 / (e2 + self.e_floor_v * self.e_floor_v);
+        // `--cfg stepdamp_ablate_load_angle` (scripts/ablation.sh only, never a drive):
+        // everything else runs, but the compensation is evaluated at θ_cmd.
+        st.delta_rad = if cfg!(stepdamp_ablate_load_angle) { 0.0 } else { w * (slow + st.fast_weight * swing) };
+        // Gate on the back-EMF the command implies (a transient |ê| at a low command
+        // speed would make the ratio explode), and bound each sample.
+        let speed = speed_rad_s.abs();
+        if self.km * speed > KM_MIN_EMF_FLOORS * self.e_floor_v {
+            let ratio = crate::bound(libm::sqrtf(e2) / speed, 0.5 * self.km, 2.0 * self.km);
+            self.km_filter.update(&mut st.km_hat, ratio);
         }
-        st.delta_rad
     }
 
     /// Restarts the filters and the histories (a broken sample or voltage history), but

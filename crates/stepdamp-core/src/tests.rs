@@ -41,6 +41,44 @@ fn config_rejects_nonsense_with_the_field_named() {
 }
 
 #[test]
+fn a_detent_the_holding_current_cannot_hold_is_refused_with_the_holding_torque() {
+    use std::string::ToString;
+    // Km·I_hold = 0.3 N·m/A × 1.9 A = 0.57 N·m; 5 N·m is 8.8 times that.
+    static BIG: [Harmonic; 1] = [Harmonic { order: 4, amplitude_nm: 5.0, phase_rad: 0.0 }];
+    static SUM_AT_LIMIT: [Harmonic; 2] = [
+        Harmonic { order: 4, amplitude_nm: 0.3, phase_rad: 0.0 },
+        Harmonic { order: 2, amplitude_nm: 0.3, phase_rad: 0.0 },
+    ];
+    for mode in [Mode::OpenLoop, Mode::Servo] {
+        for detent in [&BIG[..], &SUM_AT_LIMIT[..]] {
+            let mut p = params(mode, Compensation::Patent);
+            p.motor.detent = detent;
+            let e = Config::new(&p).unwrap_err();
+            assert!(matches!(e, ConfigError::Invalid { field: "detent.amplitude_nm", .. }), "{e:?}");
+            let text = e.to_string();
+            assert!(text.contains("= 0.57 N·m") && text.contains("cannot hold"), "{text}");
+        }
+    }
+    static HALF: [Harmonic; 1] = [Harmonic { order: 4, amplitude_nm: 0.28, phase_rad: 0.0 }];
+    let mut p = params(Mode::OpenLoop, Compensation::Patent);
+    p.motor.detent = &HALF;
+    assert!(Config::new(&p).is_ok());
+}
+
+#[test]
+fn config_errors_print_numbers_in_short_form() {
+    use std::string::ToString;
+    let mut p = params(Mode::OpenLoop, Compensation::Patent);
+    p.motor.km_nm_per_a = f32::MAX;
+    assert_eq!(
+        Config::new(&p).unwrap_err().to_string(),
+        "motor.km_nm_per_a = 3.4028235e38: must be in [1e-3, 50] N·m/A"
+    );
+    p.motor.km_nm_per_a = 1e-40;
+    assert!(Config::new(&p).unwrap_err().to_string().starts_with("motor.km_nm_per_a = 1e-40: "));
+}
+
+#[test]
 fn open_loop_commands_holding_current_and_compensation_at_theta_cmd() {
     let cfg = Config::new(&params(Mode::OpenLoop, Compensation::Patent)).unwrap();
     let series = HarmonicSeries::new(&DETENT, 1.0 / 0.3).unwrap();

@@ -356,7 +356,7 @@ pub fn import_profile(base: &Profile, c: &PrusaCorrection, current_a: f64) -> Re
         avg.pha[n] = y.atan2(x) as f32;
     }
     let (terms, _) = to_detent(&avg, c.firmware, base.motor.km_nm_per_a, current_a);
-    let name = format!("{} (Prusa correction)", base.name);
+    let name = stepdamp_sim::profile::name::derived_name(&base.name, " (Prusa correction)");
     let p = base
         .edited(&name, |d| {
             d.name = name.clone();

@@ -208,7 +208,14 @@ pub(crate) fn status_of(e: &ConfigError) -> sd_status {
     }
 }
 
-/// Every status code with its text (one home: `sd_status_str` and the tests read it).
+/// The range texts of the parameter statuses, written by `build.rs` from the core's
+/// limits.
+mod texts {
+    include!(concat!(env!("OUT_DIR"), "/status_texts.rs"));
+}
+
+/// Every status code with its text (one home: `sd_status_str` and the tests read it; the
+/// ranges come from [`texts`]).
 pub(crate) const STATUS_TEXTS: [(sd_status, &CStr); 31] = [
     (SD_OK, c"ok"),
     (SD_ERR_NULL_POINTER, c"a pointer argument is NULL"),
@@ -220,26 +227,26 @@ pub(crate) const STATUS_TEXTS: [(sd_status, &CStr); 31] = [
     (SD_ERR_DETENT_COUNT_BEYOND_CAPACITY, c"motor.detent_count exceeds SD_MAX_HARMONICS"),
     (SD_ERR_DETENT_NULL_WITH_COUNT, c"motor.detent is NULL but motor.detent_count > 0"),
     (SD_ERR_DETENT_POINTER_WITHOUT_COUNT, c"motor.detent is not NULL but motor.detent_count is 0"),
-    (SD_ERR_HARMONIC_ORDER, c"a detent harmonic order is outside 1..=SD_MAX_HARMONIC_ORDER"),
+    (SD_ERR_HARMONIC_ORDER, texts::HARMONIC_ORDER),
     (SD_ERR_DUPLICATE_HARMONIC, c"a detent harmonic order is given more than once"),
-    (SD_ERR_KM, c"motor.km_nm_per_a must be finite and > 0"),
-    (SD_ERR_POLE_PAIRS, c"motor.pole_pairs must be in 1..=1024"),
-    (SD_ERR_RESISTANCE, c"motor.resistance_ohm must be finite and > 0"),
-    (SD_ERR_INDUCTANCE, c"motor.inductance_h must be finite and > 0"),
-    (SD_ERR_COULOMB_FRICTION, c"motor.coulomb_friction_nm must be finite and >= 0"),
-    (SD_ERR_BUS_VOLTAGE, c"drive.bus_voltage_v must be finite and > 0"),
-    (SD_ERR_PWM_FREQUENCY, c"drive.pwm_hz must be finite and > 0"),
-    (SD_ERR_CURRENT_LIMIT, c"drive.current_limit_a must be finite and > 0"),
-    (SD_ERR_HOLDING_CURRENT, c"drive.holding_current_a must be finite, >= 0 and <= drive.current_limit_a"),
-    (SD_ERR_CURRENT_LOOP_BANDWIDTH, c"drive.current_loop_bandwidth_hz must be finite, > 0 and below pwm_hz/4"),
-    (SD_ERR_COMPUTATION_DELAY, c"drive.computation_delay_periods must be 0 or 1"),
-    (SD_ERR_ENCODER_COUNTS, c"encoder_counts_per_rev must be in 1..=1048576"),
-    (SD_ERR_SERVO_VELOCITY_GAIN, c"servo.velocity_nm_s_per_rad must be finite and >= 0"),
-    (SD_ERR_SERVO_POSITION_GAIN, c"servo.position_nm_per_rad must be finite and >= 0"),
-    (SD_ERR_SERVO_INTEGRAL_GAIN, c"servo.position_integral_nm_per_rad_s must be finite and >= 0"),
-    (SD_ERR_SERVO_VELOCITY_FILTER, c"servo.velocity_filter_hz must be finite and > 0"),
-    (SD_ERR_DETENT_AMPLITUDE, c"a detent amplitude is negative, not finite, or too large for Km"),
-    (SD_ERR_DETENT_PHASE, c"a detent phase is not finite"),
+    (SD_ERR_KM, texts::KM),
+    (SD_ERR_POLE_PAIRS, texts::POLE_PAIRS),
+    (SD_ERR_RESISTANCE, texts::RESISTANCE),
+    (SD_ERR_INDUCTANCE, texts::INDUCTANCE),
+    (SD_ERR_COULOMB_FRICTION, texts::COULOMB_FRICTION),
+    (SD_ERR_BUS_VOLTAGE, texts::BUS_VOLTAGE),
+    (SD_ERR_PWM_FREQUENCY, texts::PWM_FREQUENCY),
+    (SD_ERR_CURRENT_LIMIT, texts::CURRENT_LIMIT),
+    (SD_ERR_HOLDING_CURRENT, texts::HOLDING_CURRENT),
+    (SD_ERR_CURRENT_LOOP_BANDWIDTH, texts::CURRENT_LOOP_BANDWIDTH),
+    (SD_ERR_COMPUTATION_DELAY, texts::COMPUTATION_DELAY),
+    (SD_ERR_ENCODER_COUNTS, texts::ENCODER_COUNTS),
+    (SD_ERR_SERVO_VELOCITY_GAIN, texts::SERVO_VELOCITY_GAIN),
+    (SD_ERR_SERVO_POSITION_GAIN, texts::SERVO_POSITION_GAIN),
+    (SD_ERR_SERVO_INTEGRAL_GAIN, texts::SERVO_INTEGRAL_GAIN),
+    (SD_ERR_SERVO_VELOCITY_FILTER, texts::SERVO_VELOCITY_FILTER),
+    (SD_ERR_DETENT_AMPLITUDE, texts::DETENT_AMPLITUDE),
+    (SD_ERR_DETENT_PHASE, texts::DETENT_PHASE),
     (SD_ERR_INVALID_PARAMETER, c"a parameter was rejected (no dedicated code in this version)"),
 ];
 

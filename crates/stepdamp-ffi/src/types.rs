@@ -36,41 +36,42 @@ pub const SD_ERR_DETENT_POINTER_WITHOUT_COUNT: sd_status = 9;
 pub const SD_ERR_HARMONIC_ORDER: sd_status = 10;
 /// The same detent harmonic order is given twice.
 pub const SD_ERR_DUPLICATE_HARMONIC: sd_status = 11;
-/// `motor.km_nm_per_a`: must be finite and > 0 (and 1/Km finite).
+/// `motor.km_nm_per_a` is outside the range the core enforces (`sd_status_str()` states it).
 pub const SD_ERR_KM: sd_status = 12;
-/// `motor.pole_pairs`: must be in 1..=1024.
+/// `motor.pole_pairs` is outside the range the core enforces (`sd_status_str()` states it).
 pub const SD_ERR_POLE_PAIRS: sd_status = 13;
-/// `motor.resistance_ohm`: must be finite and > 0.
+/// `motor.resistance_ohm` is outside the range the core enforces (`sd_status_str()` states it).
 pub const SD_ERR_RESISTANCE: sd_status = 14;
-/// `motor.inductance_h`: must be finite and > 0.
+/// `motor.inductance_h` is outside the range the core enforces (`sd_status_str()` states it).
 pub const SD_ERR_INDUCTANCE: sd_status = 15;
-/// `motor.coulomb_friction_nm`: must be finite and ≥ 0.
+/// `motor.coulomb_friction_nm` is outside the range the core enforces (`sd_status_str()` states it).
 pub const SD_ERR_COULOMB_FRICTION: sd_status = 16;
-/// `drive.bus_voltage_v`: must be finite and > 0.
+/// `drive.bus_voltage_v` is outside the range the core enforces (`sd_status_str()` states it).
 pub const SD_ERR_BUS_VOLTAGE: sd_status = 17;
-/// `drive.pwm_hz`: must be finite and > 0.
+/// `drive.pwm_hz` is outside the range the core enforces (`sd_status_str()` states it).
 pub const SD_ERR_PWM_FREQUENCY: sd_status = 18;
-/// `drive.current_limit_a`: must be finite and > 0.
+/// `drive.current_limit_a` is outside the range the core enforces (`sd_status_str()` states it).
 pub const SD_ERR_CURRENT_LIMIT: sd_status = 19;
-/// `drive.holding_current_a`: must be finite, ≥ 0 and ≤ the current limit.
+/// `drive.holding_current_a` is outside the range the core enforces (`sd_status_str()` states it).
 pub const SD_ERR_HOLDING_CURRENT: sd_status = 20;
-/// `drive.current_loop_bandwidth_hz`: must be finite, > 0 and below `pwm_hz / 4`.
+/// `drive.current_loop_bandwidth_hz` is outside the range the core enforces (`sd_status_str()` states it).
 pub const SD_ERR_CURRENT_LOOP_BANDWIDTH: sd_status = 21;
-/// `drive.computation_delay_periods`: must be 0 or 1.
+/// `drive.computation_delay_periods` is outside the range the core enforces (`sd_status_str()` states it).
 pub const SD_ERR_COMPUTATION_DELAY: sd_status = 22;
-/// `encoder_counts_per_rev`: must be in 1..=1048576.
+/// `encoder_counts_per_rev` is outside the range the core enforces (`sd_status_str()` states it).
 pub const SD_ERR_ENCODER_COUNTS: sd_status = 23;
-/// `servo.velocity_nm_s_per_rad`: must be finite and ≥ 0.
+/// `servo.velocity_nm_s_per_rad` is outside the range the core enforces (`sd_status_str()` states it).
 pub const SD_ERR_SERVO_VELOCITY_GAIN: sd_status = 24;
-/// `servo.position_nm_per_rad`: must be finite and ≥ 0.
+/// `servo.position_nm_per_rad` is outside the range the core enforces (`sd_status_str()` states it).
 pub const SD_ERR_SERVO_POSITION_GAIN: sd_status = 25;
-/// `servo.position_integral_nm_per_rad_s`: must be finite and ≥ 0.
+/// `servo.position_integral_nm_per_rad_s` is outside the range the core enforces (`sd_status_str()` states it).
 pub const SD_ERR_SERVO_INTEGRAL_GAIN: sd_status = 26;
-/// `servo.velocity_filter_hz`: must be finite and > 0.
+/// `servo.velocity_filter_hz` is outside the range the core enforces (`sd_status_str()` states it).
 pub const SD_ERR_SERVO_VELOCITY_FILTER: sd_status = 27;
-/// A detent amplitude is negative or not finite, or too large for `Km`.
+/// A detent amplitude is outside its range, or the amplitudes sum to the holding torque
+/// `Km·I_hold` or more (`sd_status_str()` states both bounds).
 pub const SD_ERR_DETENT_AMPLITUDE: sd_status = 28;
-/// A detent phase is not finite.
+/// A detent phase is outside its range (`sd_status_str()` states it).
 pub const SD_ERR_DETENT_PHASE: sd_status = 29;
 /// A parameter this version of the C API has no dedicated code for was rejected by the
 /// core (a newer check); the Rust `ConfigError` names it.
@@ -126,13 +127,13 @@ pub struct sd_harmonic {
 #[repr(C)]
 #[derive(Clone, Copy, Debug)]
 pub struct sd_motor {
-    /// Torque constant `Km` in N·m/A (> 0).
+    /// Torque constant `Km` in N·m/A (range: `sd_status_str(SD_ERR_KM)`).
     pub km_nm_per_a: f32,
-    /// Rotor teeth / pole pairs `Nr` (1..=1024; 50 for a 1.8° motor).
+    /// Rotor teeth / pole pairs `Nr` (50 for a 1.8° motor; range: `sd_status_str(SD_ERR_POLE_PAIRS)`).
     pub pole_pairs: u16,
-    /// Phase resistance `R` in Ω (> 0).
+    /// Phase resistance `R` in Ω (range: `sd_status_str(SD_ERR_RESISTANCE)`).
     pub resistance_ohm: f32,
-    /// Phase inductance `L` in H (> 0).
+    /// Phase inductance `L` in H (range: `sd_status_str(SD_ERR_INDUCTANCE)`).
     pub inductance_h: f32,
     /// Coulomb friction `Fs` in N·m (≥ 0), fed forward in servo mode.
     pub coulomb_friction_nm: f32,
@@ -147,15 +148,15 @@ pub struct sd_motor {
 #[repr(C)]
 #[derive(Clone, Copy, Debug)]
 pub struct sd_drive {
-    /// DC bus voltage in V (> 0).
+    /// DC bus voltage in V (range: `sd_status_str(SD_ERR_BUS_VOLTAGE)`).
     pub bus_voltage_v: f32,
-    /// Control and PWM frequency in Hz (> 0; 20 kHz typical): `sd_step()` runs once per period.
+    /// Control and PWM frequency in Hz (20 kHz typical; range: `sd_status_str(SD_ERR_PWM_FREQUENCY)`): `sd_step()` runs once per period.
     pub pwm_hz: f32,
     /// Open-loop d-axis holding current in A (≥ 0, ≤ `current_limit_a`).
     pub holding_current_a: f32,
-    /// Limit of the current vector magnitude in A (> 0).
+    /// Limit of the current vector magnitude in A (range: `sd_status_str(SD_ERR_CURRENT_LIMIT)`).
     pub current_limit_a: f32,
-    /// Closed current-loop bandwidth in Hz (> 0, below `pwm_hz / 4`).
+    /// Closed current-loop bandwidth in Hz (range: `sd_status_str(SD_ERR_CURRENT_LOOP_BANDWIDTH)`).
     pub current_loop_bandwidth_hz: f32,
     /// Power stage, an `SD_TOPOLOGY_*` value.
     pub topology: sd_topology,
@@ -173,7 +174,8 @@ pub struct sd_servo {
     pub position_nm_per_rad: f32,
     /// `Ki_pos` in N·m/(rad·s) (≥ 0).
     pub position_integral_nm_per_rad_s: f32,
-    /// Corner of the encoder velocity low-pass filter in Hz (> 0).
+    /// Corner of the encoder velocity low-pass filter in Hz (range:
+    /// `sd_status_str(SD_ERR_SERVO_VELOCITY_FILTER)`).
     pub velocity_filter_hz: f32,
 }
 
@@ -185,7 +187,8 @@ pub struct sd_params {
     pub motor: sd_motor,
     /// Drive settings.
     pub drive: sd_drive,
-    /// Encoder counts per mechanical revolution (1..=2²⁰; used in servo mode).
+    /// Encoder counts per mechanical revolution (used in servo mode; range:
+    /// `sd_status_str(SD_ERR_ENCODER_COUNTS)`).
     pub encoder_counts_per_rev: u32,
     /// Servo gains (used in servo mode).
     pub servo: sd_servo,

@@ -87,11 +87,13 @@ pub(crate) fn tmp_prefix() -> String {
 
 /// Creates an empty temporary file beside `final_path` (same directory, name
 /// `.tmp-<pid>-<random>-<file name>`, so the extension is kept), registered for removal on
-/// interruption before it exists. Permissions: those of the file it will replace, else
+/// interruption before it exists. First removes the temporaries for the same target that
+/// killed processes left ([`remove_stale_temps`]). Permissions: those of the file it will replace, else
 /// 0666 less the umask (as a plain create would give).
 pub(crate) fn create_temp(final_path: &Path) -> Result<(File, PathBuf, Token), OutError> {
     let dir = parent_dir(final_path);
     let name = final_path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    remove_stale_temps(dir, &name);
     let suffix = format!("-{name}");
     let prefix = tmp_prefix();
     let mut b = tempfile::Builder::new();
@@ -113,6 +115,43 @@ pub(crate) fn create_temp(final_path: &Path) -> Result<(File, PathBuf, Token), O
         let _ = std::fs::set_permissions(&tmp_path, m.permissions());
     }
     Ok((file, tmp_path, token))
+}
+
+/// The process id in `file_name` if it is a temporary of ours for the target named
+/// `target_name`: `.tmp-<pid>-<random>-<target name>`, with `<random>` alphanumeric.
+fn temp_owner(file_name: &str, target_name: &str) -> Option<u32> {
+    let rest = file_name.strip_prefix(".tmp-")?;
+    let (pid, rest) = rest.split_once('-')?;
+    let random = rest.strip_suffix(target_name)?.strip_suffix('-')?;
+    let ours = !random.is_empty() && random.bytes().all(|b| b.is_ascii_alphanumeric());
+    let digits = !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit());
+    if ours && digits { pid.parse().ok() } else { None }
+}
+
+/// Whether process `pid` is known to be gone: on Linux, `/proc/<pid>` does not exist (with
+/// `/proc` mounted). Elsewhere, or without `/proc`, nothing is known to be gone.
+fn process_gone(pid: u32) -> bool {
+    Path::new("/proc/self").exists() && !Path::new("/proc").join(pid.to_string()).exists()
+}
+
+/// Removes the temporaries for the target `target_name` in `dir` that a process left
+/// behind when it was killed without a chance to clean up (SIGKILL, a power cut): regular
+/// files named by [`temp_owner`]'s pattern whose process is gone. Temporaries of live
+/// processes (another run writing the same file), other files, symlinks and directories
+/// are left alone; errors are ignored (the write itself reports a real problem).
+fn remove_stale_temps(dir: &Path, target_name: &str) {
+    if target_name.is_empty() {
+        return;
+    }
+    let own = std::process::id();
+    for entry in std::fs::read_dir(dir).into_iter().flatten().flatten() {
+        let name = entry.file_name();
+        let Some(pid) = name.to_str().and_then(|n| temp_owner(n, target_name)) else { continue };
+        let regular = entry.file_type().is_ok_and(|t| t.is_file());
+        if regular && pid != own && process_gone(pid) {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
 }
 
 /// Renames a registered temporary over its target and unregisters it, under the lock.

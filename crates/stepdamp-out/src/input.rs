@@ -110,6 +110,39 @@ pub fn printable(bytes: &[u8], max_chars: usize) -> String {
     out
 }
 
+/// Why a CSV file is visibly not in the dialect stepdamp reads (`,` between columns, `.` as
+/// the decimal mark), judged from its header line and, if there is one, its first data
+/// line; `None` when it looks right. A spreadsheet in a locale with a decimal comma
+/// exports `;`-separated columns and `1,5`; read as stepdamp's CSV, such a header is one
+/// column named after the whole line, and a reader would say "missing column" while
+/// quoting the very name it asks for. Readers add this to that message.
+pub fn csv_dialect_problem(header: &str, first_row: Option<&str>) -> Option<String> {
+    const WANT: &str = "stepdamp reads `,` between columns and `.` as the decimal mark";
+    let fields = |line: &str| line.split(',').count();
+    if !header.contains(',') {
+        for (sep, name) in [(';', "`;`"), ('\t', "tabs")] {
+            if header.contains(sep) {
+                let decimal = first_row.is_some_and(|r| r.contains(','));
+                let also = if decimal { " and `,` as the decimal mark" } else { "" };
+                return Some(format!("the file separates columns with {name}{also}: {WANT}"));
+            }
+        }
+    }
+    let row = first_row?;
+    // A decimal comma in a comma-separated file: more fields than the header has names,
+    // with a digit on both sides of an extra comma.
+    let digit_comma_digit =
+        row.as_bytes().windows(3).any(|w| w[0].is_ascii_digit() && w[1] == b',' && w[2].is_ascii_digit());
+    if fields(row) > fields(header) && digit_comma_digit {
+        return Some(format!(
+            "line 2 has {} fields for {} columns: the file seems to use `,` as the decimal mark; {WANT}",
+            fields(row),
+            fields(header)
+        ));
+    }
+    None
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -143,6 +176,25 @@ mod tests {
         sink.clear();
         ok.read_to_end(&mut sink).unwrap();
         assert_eq!(sink, b"a\nbb\n");
+    }
+
+    #[test]
+    fn a_semicolon_or_decimal_comma_csv_is_named_as_such() {
+        let e = csv_dialect_problem("t_s;theta_cmd_rad;i_a_a", Some("0,00005;0,1;1,9")).unwrap();
+        assert!(e.contains("`;`") && e.contains("decimal mark") && e.contains("stepdamp reads"), "{e}");
+        let e = csv_dialect_problem("t_s;theta_cmd_rad", Some("0.5;0.1")).unwrap();
+        assert!(e.contains("`;`") && !e.contains("and `,` as the decimal mark"), "{e}");
+        assert!(csv_dialect_problem("t_s\ti_a_a", None).unwrap().contains("tabs"));
+        let e = csv_dialect_problem("t_s,i_a_a", Some("0,5,1,9")).unwrap();
+        assert!(e.contains("4 fields for 2 columns"), "{e}");
+    }
+
+    #[test]
+    fn a_proper_csv_has_no_dialect_problem() {
+        assert_eq!(csv_dialect_problem("t_s,i_a_a", Some("0.5,1.9")), None);
+        assert_eq!(csv_dialect_problem("t_s,i_a_a", None), None);
+        assert_eq!(csv_dialect_problem("t_s", Some("0.5")), None);
+        assert_eq!(csv_dialect_problem("name,comment", Some("a,\"b;c\"")), None);
     }
 
     #[test]

@@ -8,7 +8,9 @@
 //! * [`OutputSet`]: several files moved into place together; [`OutputDir`]: a directory
 //!   filled step by step that is removed again if the command fails.
 //! * On SIGINT, SIGTERM or SIGHUP every temporary file and every directory the command
-//!   created is removed before the process ends (see `cleanup`).
+//!   created is removed before the process ends (see `cleanup`). SIGKILL cannot be
+//!   caught: its temporary stays until the next write to the same target, which removes
+//!   the temporaries of that target whose process is gone (Linux: no `/proc/<pid>`).
 //! * [`input`]: reading with a byte bound, a line-length bound, and messages that never
 //!   echo non-printable bytes.
 

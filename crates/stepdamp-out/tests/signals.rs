@@ -129,6 +129,41 @@ fn an_interrupted_single_file_leaves_the_old_file_or_the_complete_new_one() {
 }
 
 #[test]
+fn a_temporary_left_by_sigkill_is_removed_by_the_next_write_to_that_target() {
+    let dir = tempfile::tempdir().unwrap();
+    // SIGKILL cannot be caught: the child's temporary stays behind.
+    assert!(run_interrupted("single", dir.path(), "KILL", 40), "the child finished before SIGKILL");
+    let left = |d: &Path| -> Vec<PathBuf> {
+        tree(d).into_iter().filter(|p| p.file_name().unwrap().to_string_lossy().starts_with(".tmp-")).collect()
+    };
+    assert_eq!(left(dir.path()).len(), 1, "{:?}", tree(dir.path()));
+    // Beside it: a live process's temporary for the same target (this test's own parent,
+    // alive), and files that only look alike; none of them may go.
+    let parent = std::os::unix::process::parent_id();
+    let keep = [
+        format!(".tmp-{parent}-a1B2c3-run.csv"),
+        ".tmp-x1-a1B2c3-run.csv".to_string(),
+        ".tmp-999999999-a1B2c3-other.csv".to_string(),
+        ".tmp-999999999-a1B2c3-run.csv.bak".to_string(),
+        "run.csv.tmp-999999999".to_string(),
+    ];
+    for k in &keep {
+        std::fs::write(dir.path().join(k), "keep").unwrap();
+    }
+    std::fs::create_dir(dir.path().join(".tmp-999999998-a1B2c3-run.csv")).unwrap();
+    write_file(&dir.path().join("run.csv"), b"new\n").unwrap();
+    assert_eq!(std::fs::read_to_string(dir.path().join("run.csv")).unwrap(), "new\n");
+    let mut names: Vec<String> =
+        left(dir.path()).iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
+    names.sort();
+    let mut want: Vec<String> = keep.iter().filter(|k| k.starts_with(".tmp-")).cloned().collect();
+    want.push(".tmp-999999998-a1B2c3-run.csv".into());
+    want.sort();
+    assert_eq!(names, want, "the killed child's temporary is gone, nothing else");
+    assert!(dir.path().join("run.csv.tmp-999999999").exists());
+}
+
+#[test]
 fn an_interrupted_set_appears_complete_or_not_at_all() {
     for ms in MOMENTS_MS {
         let dir = tempfile::tempdir().unwrap();

@@ -29,6 +29,7 @@ pub mod data;
 pub mod error;
 pub mod figures;
 pub mod load;
+pub mod name;
 pub mod profile;
 pub mod runlog;
 mod validate;

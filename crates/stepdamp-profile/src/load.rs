@@ -87,10 +87,19 @@ impl ProfileData {
     }
 }
 
-/// A parser message on one line: toml's "TOML parse error at line L, column C", its
+/// Longest parser message shown, in characters (it quotes the offending line).
+const MAX_MESSAGE_CHARS: usize = 400;
+
+/// A parser message on one line with the control characters of the file's text (an ESC
+/// sequence in the quoted line) escaped, so that it cannot drive the terminal.
+fn one_line(s: &str) -> String {
+    stepdamp_out::input::printable(joined(s).as_bytes(), MAX_MESSAGE_CHARS)
+}
+
+/// The parser message on one line: toml's "TOML parse error at line L, column C", its
 /// source excerpt (`L | text`, caret lines dropped) and the reason become
 /// "TOML parse error at line L, column C (`text`): reason".
-fn one_line(s: &str) -> String {
+fn joined(s: &str) -> String {
     let mut head = Vec::new();
     let mut source = Vec::new();
     let mut rest = Vec::new();

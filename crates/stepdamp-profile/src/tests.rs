@@ -91,6 +91,10 @@ fn every_value_inside_the_ranges_gives_finite_derived_quantities() {
                 d.drive.current_limit_a = l::CURRENT_LIMIT_A.max;
                 d.drive.holding_current_a = hold;
                 d.motor.pole_pairs = nr as u16;
+                // Within the holding torque at this corner's current (else implausible).
+                for t in &mut d.motor.detent {
+                    t.amplitude_nm = t.amplitude_nm.min(0.1 * km * hold);
+                }
             })
             .unwrap();
         assert!(q.natural_frequency_rad_s().is_finite() && q.resonance_speed_rad_s(32).is_finite());
@@ -311,5 +315,49 @@ fn bad_simulator_keys_name_file_key_value_and_range() {
     ] {
         let e = bad(from, to, law);
         assert!(e.contains(want), "{e}\nwant: {want}");
+    }
+}
+
+#[test]
+fn a_hostile_name_is_refused_with_file_key_escaped_value_and_rule() {
+    for (name, shows) in [
+        ("m\\n[gcode_macro PWNED]\\ngcode: M112", "\"m\\u{a}[gcode_macro PWNED]\\u{a}gcode: M112\""),
+        ("m\\u001b[2J", "\"m\\u{1b}[2J\""),
+        ("m */ #include <x> /*", "\"m */ #include <x> /*\""),
+    ] {
+        let e = replaced("name = \"patent-motor\"", &format!("name = \"{name}\"")).to_string();
+        assert!(e.starts_with(&format!("m.toml: name = {shows}: ")), "{e}");
+        assert!(e.contains("one printable line") && !e.contains('\n') && !e.contains('\u{1b}'), "{e}");
+    }
+}
+
+#[test]
+fn a_detent_beyond_the_holding_torque_is_refused_with_the_reason() {
+    // Km·I_hold = 0.3 × 1.9 = 0.57 N·m; a 5 N·m detent is 8.8 times that.
+    let e = replaced("amplitude_nm = 0.02", "amplitude_nm = 5.0");
+    assert!(e.starts_with("m.toml: motor.detent = 5.02 N·m in all (the sum of the amplitudes): "), "{e}");
+    assert!(e.contains("km_nm_per_a × drive.holding_current_a = 0.57 N·m") && e.contains("cannot hold"), "{e}");
+    // The same detent is plausible at a holding current that holds it.
+    let ok = with(|s| {
+        *s = s.replacen("amplitude_nm = 0.02", "amplitude_nm = 0.4", 1);
+    });
+    assert!(ok.is_ok(), "{ok:?}");
+}
+
+#[test]
+fn a_value_far_outside_its_range_prints_in_short_form() {
+    let e = replaced("km_nm_per_a = 0.3", "km_nm_per_a = 1.7976931348623157e308");
+    assert!(e.starts_with("m.toml: motor.km_nm_per_a = 1.7976931348623157e308: "), "{e}");
+    let e = replaced("inertia_kg_m2 = 4.0e-5", "inertia_kg_m2 = 5e-324");
+    assert!(e.starts_with("m.toml: motor.inertia_kg_m2 = 5e-324: ") && e.len() < 200, "{e}");
+}
+
+#[test]
+fn a_parse_error_quoting_control_characters_escapes_them() {
+    for (from, to) in
+        [("name = \"patent-motor\"", "name = \"m\u{1b}[2Jx\""), ("pole_pairs = 50", "pole_pairs\u{1b}[31m = 50")]
+    {
+        let e = replaced(from, to);
+        assert!(e.contains("\\u{1b}[") && !e.contains('\u{1b}') && !e.contains('\n'), "{e:?}");
     }
 }

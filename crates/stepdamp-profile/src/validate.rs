@@ -20,8 +20,8 @@ fn invalid(origin: &str, key: &str, value: String, reason: &str) -> ProfileError
 
 /// Every key within its range ([`stepdamp_core::limits`]) and the relations between keys.
 pub(crate) fn check(p: &ProfileData, origin: &str) -> Result<(), ProfileError> {
-    if p.name.trim().is_empty() {
-        return Err(invalid(origin, "name", format!("{:?}", p.name), "must not be empty"));
+    if let Some(why) = crate::name::name_problem(&p.name) {
+        return Err(invalid(origin, "name", crate::name::quoted_name(&p.name), &why));
     }
     let m = &p.motor;
     for (l, v) in [
@@ -66,6 +66,13 @@ pub(crate) fn check(p: &ProfileData, origin: &str) -> Result<(), ProfileError> {
             Num(d.holding_current_a).to_string(),
             "must not exceed drive.current_limit_a",
         ));
+    }
+    let detent_sum_nm: f64 = m.detent.iter().map(|h| h.amplitude_nm).sum();
+    if !limits::detent_within_holding_torque(detent_sum_nm, m.km_nm_per_a, d.holding_current_a) {
+        let holding_torque_nm = (m.km_nm_per_a * d.holding_current_a) as f32;
+        let why = stepdamp_core::Reason::DetentAboveHoldingTorque { holding_torque_nm }.to_string();
+        let v = format!("{} N·m in all (the sum of the amplitudes)", Num(detent_sum_nm));
+        return Err(invalid(origin, "motor.detent", v, &why));
     }
     if d.current_loop_bandwidth_hz > d.pwm_hz * limits::CURRENT_LOOP_BANDWIDTH_PER_PWM {
         let key = limits::CURRENT_LOOP_BANDWIDTH_HZ.key;
@@ -157,7 +164,7 @@ pub(crate) fn check_derived(p: &Profile, origin: &str) -> Result<(), ProfileErro
                 origin,
                 limits::INERTIA_KG_M2.key,
                 Num(p.motor.inertia_kg_m2).to_string(),
-                &format!("with the other keys {what} is {v}, not a finite number > 0"),
+                &format!("with the other keys {what} is {}, not a finite number > 0", Num(v)),
             ));
         }
     }

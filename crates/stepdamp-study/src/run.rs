@@ -11,6 +11,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use stepdamp_sim::profile::ProfileData;
+use stepdamp_sim::profile::name::derived_name;
 use stepdamp_sim::sweep::derived_seed;
 use stepdamp_sim::{Profile, RunSpec, SimOptions, SweepRow, SweepSpec, linear_grid, sweep};
 
@@ -90,13 +91,16 @@ impl Study {
             ControllerModel::Plant => plant.clone(),
         };
         apply(&self.spec.controller_error, &mut controller, &mut rng);
-        plant.name = format!("{} variant {index}", self.nominal.name);
-        controller.name = format!("{} controller model {index}", self.nominal.name);
+        plant.name = derived_name(&self.nominal.name, &format!(" variant {index}"));
+        controller.name = derived_name(&self.nominal.name, &format!(" controller model {index}"));
         let bad = |e: stepdamp_sim::ProfileError| StudyError::Variant { index, message: e.to_string() };
         let plant = plant.validate("plant").map_err(bad)?;
         let controller = controller.validate("controller").map_err(bad)?;
         if !(load.is_finite() && load >= 0.0) {
-            return Err(StudyError::Variant { index, message: format!("load_torque_nm = {load}: must be ≥ 0 N·m") });
+            return Err(StudyError::Variant {
+                index,
+                message: format!("load_torque_nm = {}: must be ≥ 0 N·m", stepdamp_core::limits::Num(load)),
+            });
         }
         Ok(Variant { index, plant, controller, load_torque_nm: load })
     }

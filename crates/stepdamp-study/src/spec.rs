@@ -28,6 +28,7 @@
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 use stepdamp_core::Mode;
+use stepdamp_core::limits::Num;
 use stepdamp_sim::{Compensation, Profile};
 
 /// A distribution of one parameter. Uniform draws; `scale` multiplies the nominal value,
@@ -61,10 +62,14 @@ impl Dist {
             Dist::Uniform(r) => ("uniform", r),
         };
         if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
-            return Err(format!("{key} = {{ {name} = [{lo}, {hi}] }}: the bounds must be finite with lo ≤ hi"));
+            return Err(format!(
+                "{key} = {{ {name} = [{}, {}] }}: the bounds must be finite with lo ≤ hi",
+                Num(lo),
+                Num(hi)
+            ));
         }
         if name == "scale" && lo <= 0.0 {
-            return Err(format!("{key} = {{ scale = [{lo}, {hi}] }}: a scale factor must be > 0"));
+            return Err(format!("{key} = {{ scale = [{}, {}] }}: a scale factor must be > 0", Num(lo), Num(hi)));
         }
         Ok(())
     }
@@ -341,19 +346,19 @@ impl Study {
             return Err(bad(format!("sweep.points = {}: must be in 1..=50", s.points)));
         }
         if !(s.span.is_finite() && (0.0..0.5).contains(&s.span)) {
-            return Err(bad(format!("sweep.span = {}: must be in [0, 0.5)", s.span)));
+            return Err(bad(format!("sweep.span = {}: must be in [0, 0.5)", Num(s.span))));
         }
         if s.points > 1 && s.span == 0.0 {
             return Err(bad(format!("sweep.span = 0 with sweep.points = {}: the points would coincide", s.points)));
         }
         if !(s.duration_s.is_finite() && (0.2..=100.0).contains(&s.duration_s)) {
-            return Err(bad(format!("sweep.duration_s = {}: must be in 0.2..=100 s", s.duration_s)));
+            return Err(bad(format!("sweep.duration_s = {}: must be in 0.2..=100 s", Num(s.duration_s))));
         }
         if !(1..=1000).contains(&s.substeps) {
             return Err(bad(format!("sweep.substeps = {}: must be in 1..=1000", s.substeps)));
         }
         if !(s.current_noise_a.is_finite() && s.current_noise_a >= 0.0) {
-            return Err(bad(format!("sweep.current_noise_a = {}: must be ≥ 0 A", s.current_noise_a)));
+            return Err(bad(format!("sweep.current_noise_a = {}: must be ≥ 0 A", Num(s.current_noise_a))));
         }
         let have: Vec<u16> = nominal.motor.detent.iter().map(|h| h.order).collect();
         let orders = match &s.orders {

@@ -170,3 +170,13 @@ fn a_variant_outside_the_physical_range_is_an_error_naming_it() {
     let e = s.run_range(1, 3, &|| {}).unwrap_err().to_string();
     assert!(e.starts_with("variant ") && e.contains("coulomb_friction_nm"), "{e}");
 }
+
+#[test]
+fn spec_errors_print_numbers_in_short_form() {
+    let err = |text: &str| Study::from_toml_str(text, "s.toml", Path::new(".")).unwrap_err().to_string();
+    let base = "motor = \"patent-motor\"\nvariants = 4\n";
+    let e = err(&format!("{base}[plant]\ninertia_kg_m2 = {{ add = [1e300, 1e-300] }}\n"));
+    assert!(e.contains("[1e300, 1e-300]") && e.len() < 200, "{e}");
+    let e = err(&format!("{base}[sweep]\nduration_s = 1e-300\n"));
+    assert!(e.contains("sweep.duration_s = 1e-300:"), "{e}");
+}
