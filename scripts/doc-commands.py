@@ -27,7 +27,8 @@ reason. Blocks tagged otherwise (python, c, toml, text) are not shell and are no
 
 Before running anything it checks the links: every relative link of those files must name a
 file that exists and, with ``#anchor``, a heading it has; so must every ``docs/….md#anchor``
-that the code (crates, python, fuzz, firmware, examples, scripts) cites. A list of the run
+that the code (crates, python, fuzz, firmware, examples, scripts) cites, and the code cites no
+section numbers of a design note nor issue numbers, which users cannot read. A list of the run
 log's columns after the name ``LOG_COLUMNS`` must equal that constant, and the instructions
 per step in docs/embedded.md the counts in firmware/qemu-m4/instructions.txt.
 """
@@ -114,6 +115,9 @@ def check_links(root, files):
                 elif frag and dest.suffix == ".md" and frag not in anchors(dest):
                     broken.append(f"{f.relative_to(root)}:{n}: {target}: no such heading")
     cited = re.compile(r"(docs/[\w./-]+\.md)#([\w-]+)")
+    # Citations a user cannot follow: sections of a design note outside the repository, and
+    # issue numbers of a tracker no one outside can read. Code cites docs/….md#heading.
+    private = re.compile(r"design\.md\s*§|(?<![\w/])§\s*\d|\b[Ii]ssues?\s+#?\d+")
     code = subprocess.run(["git", "ls-files", "-z", "crates", "python", "fuzz", "firmware", "examples", "scripts"],
                           cwd=root, check=True, capture_output=True).stdout.decode().split("\0")
     for name in filter(None, code):
@@ -121,6 +125,8 @@ def check_links(root, files):
         if src.suffix not in {".rs", ".py", ".pyi", ".sh", ".c", ".h", ".toml"} or not src.exists():
             continue
         for n, line in enumerate(src.read_text(encoding="utf-8", errors="replace").splitlines(), 1):
+            if private.search(line):
+                broken.append(f"{name}:{n}: cites {private.search(line).group(0)!r}: cite docs/….md#heading")
             for doc, frag in cited.findall(line):
                 dest = root / doc
                 if not dest.exists():

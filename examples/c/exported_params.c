@@ -1,4 +1,4 @@
-/* The identify -> firmware path without hand copying (issue 13 item 5): motor_params.h is
+/* The identify -> firmware path without hand copying: motor_params.h is
  * written by `stepdamp export c-header --motor patent-motor --out examples/c/motor_params.h
  * --name motor --duration 0` (CI regenerates it and fails on a difference). This checks that the exported
  * initializer configures the controller and that the motor, drive and encoder it carries are

@@ -122,7 +122,7 @@ pub fn linear_grid(from_rad_s: f64, to_rad_s: f64, points: usize) -> Vec<f64> {
 }
 
 /// Velocity error against speed (the CLI's `sweep`), in parallel on all cores. Returns
-/// `(table, summary_json, summary_text)`: the sweep table's columns (design.md §6) and the
+/// `(table, summary_json, summary_text)`: the sweep table's columns (docs/files.md) and the
 /// library's `SweepSummary` as JSON (the CLI's `--format json`) and as the CLI's text.
 #[pyfunction]
 #[pyo3(signature = (profile, modes, compensations, speeds_rad_s, *, controller = None, duration_s = RunSpec::DURATION_S,

@@ -191,7 +191,7 @@ pub fn run(a: SweepArgs, g: &Global) -> Result<()> {
     Ok(())
 }
 
-/// Writes the sweep table of design.md §6.
+/// Writes the sweep table (docs/files.md, docs/design.md#file-formats).
 pub fn write_table(path: &std::path::Path, rows: &[SweepRow]) -> Result<()> {
     let mut w = csv::Writer::from_path(path)?;
     for r in rows {

@@ -1,4 +1,4 @@
-//! `stepdamp identify` on the sensorless route (issue 16), end to end through the binary.
+//! `stepdamp identify` on the sensorless route, end to end through the binary.
 
 use std::path::Path;
 use std::process::{Command, Output};

@@ -137,7 +137,7 @@ crate::named_choice!(Compensation, "compensation", "off, patent, estimated, angl
     Table => "table",
 ]);
 
-/// Detent harmonics of the `patent-motor` (design.md §6–§7).
+/// Detent harmonics of the `patent-motor` (docs/design.md#presets).
 pub const PATENT_MOTOR_DETENT: [Harmonic; 3] = [
     Harmonic { order: 4, amplitude_nm: 0.02, phase_rad: 0.0 },
     Harmonic { order: 2, amplitude_nm: 0.012, phase_rad: 0.7 },

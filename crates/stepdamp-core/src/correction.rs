@@ -32,8 +32,9 @@ pub const TABLE_TICKS: usize = 1024;
 
 /// Reference coil currents per tick of one electrical period, for both directions.
 ///
-/// Entry `[tick][0]` is winding a, `[tick][1]` winding b (stepdamp's windings, design.md
-/// §2: `i_d = i_a cos θe + i_b sin θe`), in counts of which `full_scale` is `I_hold`.
+/// Entry `[tick][0]` is winding a, `[tick][1]` winding b (stepdamp's windings,
+/// docs/design.md#the-plant: `i_d = i_a cos θe + i_b sin θe`), in counts of which
+/// `full_scale` is `I_hold`.
 /// Tick `n` covers `θe ∈ [2π·n/1024, 2π·(n+1)/1024)`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct CorrectionTable {

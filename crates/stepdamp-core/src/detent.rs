@@ -1,6 +1,6 @@
 //! Detent-torque harmonic series `Σ_k A_k sin(k θe + φ_k)` and its compensating current.
 //!
-//! The detent torque *on the rotor* is `−Σ A_k sin(k θe + φ_k)` (design.md §2); the
+//! The detent torque *on the rotor* is `−Σ A_k sin(k θe + φ_k)` (docs/design.md#the-plant); the
 //! compensating q-current is `+(1/Km) Σ A_k sin(k θe + φ_k)`. Each term is stored as
 //! `a_k = A_k cos φ_k`, `b_k = A_k sin φ_k` in a dense table by order, so one `sin/cos` of
 //! `θe` and a complex rotation per order evaluate the whole series: cost

@@ -26,7 +26,7 @@ pub const CURRENT_SENSOR_FAULT_PERIODS: u32 = 20;
 ///
 /// Directions: a positive phase current flows in the direction a positive winding voltage
 /// drives it (`v_a = v_α − v_γ` on three legs, `v_A+ − v_A−` on H-bridges: into the
-/// winding from leg α / A+), so that `τ = Km(−i_a sin θe + i_b cos θe)` (design.md §2).
+/// winding from leg α / A+), so that `τ = Km(−i_a sin θe + i_b cos θe)` (docs/design.md#the-plant).
 /// The encoder counts up when the rotor turns in the positive direction: positive count
 /// = positive `θ`, the direction a positive speed command and a positive `i_q` turn it.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

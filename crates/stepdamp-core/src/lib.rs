@@ -14,7 +14,7 @@
 //! Configuration ([`Config`], validated and precomputed once from [`Params`]) is kept
 //! apart from state ([`State`], mutated every period).
 //!
-//! Sign conventions (design.md §2): `θe = Nr·θ`; `i_d = i_a cos θe + i_b sin θe`,
+//! Sign conventions (docs/design.md#the-plant): `θe = Nr·θ`; `i_d = i_a cos θe + i_b sin θe`,
 //! `i_q = −i_a sin θe + i_b cos θe`; motor torque `Km(−i_a sin θe + i_b cos θe)`, i.e.
 //! `Km·i_q` when the frame is the rotor's; detent torque on the rotor
 //! `−Σ A_k sin(k θe + φ_k)`.

@@ -3,7 +3,7 @@
 //!
 //! `d = a cos θe + b sin θe`, `q = −a sin θe + b cos θe`; inverse
 //! `a = d cos θe − q sin θe`, `b = d sin θe + q cos θe`. A positive `q` current makes
-//! positive torque `τ = Km·i_q` when the frame is aligned with the rotor (design.md §2).
+//! positive torque `τ = Km·i_q` when the frame is aligned with the rotor (docs/design.md#the-plant).
 //! Cost: 4 multiplies and 2 adds each, given `(sin θe, cos θe)`. Round-trip error: a few
 //! ulp of the inputs' magnitude.
 
@@ -53,7 +53,7 @@ mod tests {
 
     #[test]
     fn q_axis_sign_matches_design_section_3() {
-        // design.md §3: i_q = −i_a sin θe + i_b cos θe.
+        // docs/design.md#the-plant: i_q = −i_a sin θe + i_b cos θe.
         // θe = π/2 (sin 1, cos 0): phase A current is −q, phase B current is +d.
         assert_eq!(park(Ab { a: 1.0, b: 0.0 }, 1.0, 0.0), Dq { d: 0.0, q: -1.0 });
         assert_eq!(park(Ab { a: 0.0, b: 1.0 }, 1.0, 0.0), Dq { d: 1.0, q: 0.0 });

@@ -282,7 +282,7 @@ fn servo_compensation_is_evaluated_at_theta_fb_not_theta_cmd() {
 
 #[test]
 fn measured_currents_are_parked_with_the_design_q_sign() {
-    // design.md §3: i_q = −i_a sin θe + i_b cos θe, i_d = i_a cos θe + i_b sin θe.
+    // docs/design.md#the-plant: i_q = −i_a sin θe + i_b cos θe, i_d = i_a cos θe + i_b sin θe.
     let cfg = Config::new(&params(Mode::OpenLoop, Compensation::Off)).unwrap();
     let mut st = State::default();
     // θ_cmd = 0: phase B current is +q, phase A current is +d.

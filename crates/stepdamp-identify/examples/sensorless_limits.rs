@@ -133,6 +133,6 @@ fn main() {
         }
     }
     println!(
-        "\npatent-motor and 5 random motors (detent 4–30 mN·m, J ×0.5–3); tolerance of issue 16: 10 % and 0.1 rad"
+        "\npatent-motor and 5 random motors (detent 4–30 mN·m, J ×0.5–3); tolerance of docs/sensorless.md: 10 % and 0.1 rad"
     );
 }

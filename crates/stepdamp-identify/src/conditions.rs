@@ -1,4 +1,4 @@
-//! What the logs can decide, and what the fit does when they cannot (issue 11, item 2).
+//! What the logs can decide, and what the fit does when they cannot.
 //!
 //! # Runs too slow for the encoder
 //!
@@ -6,7 +6,7 @@
 //! below its loop bandwidth in rad/s) kicks the rotor at every count: it stops and starts
 //! *inside* counts, where no edge timing can see it, and spends a share of the time at
 //! speeds where friction is below `Fs` (creep, stiction). Such runs show less friction than
-//! faster ones — measured on an independent simulation of issue 11's class, 5–21 % less at
+//! faster ones — measured on an independent simulation of the stress family (tests/independent), 5–21 % less at
 //! 0.5 than at 1 rad/s with 40–80 Hz drives and 4000 counts, while the 1 rad/s runs gave `Fs`
 //! within 0.5 % — and bias the harmonics by up to 6 %. The friction law `Fs + D·|ω|` cannot
 //! make the slower level *lower* by more than `ΔD·Δω` (with `D` held at the base profile's),

@@ -1,12 +1,12 @@
 //! # stepdamp-identify
 //!
 //! Identification of the detent harmonics and the friction of a hybrid stepper motor
-//! (design.md §5, US 7,733,051 §A, claim 1), from servo-mode run logs of the simulator or
+//! (docs/design.md#identification; US 7,733,051 part A, claim 1), from servo-mode run logs of the simulator or
 //! of a real drive, and the motor profile that results.
 //!
 //! | module | what |
 //! |---|---|
-//! | [`log`] | read a run-log CSV (design.md §6); errors name the file, line and column |
+//! | [`log`] | read a run-log CSV (docs/files.md); errors name the file, line and column |
 //! | [`kinematics`] | speed and acceleration from a quantised encoder angle |
 //! | [`lsq`] | least squares (QR + SVD) with a block-robust covariance |
 //! | [`fit`] | the torque balance fit: harmonics, `Fs`, `D`, intervals, warnings |

@@ -32,7 +32,7 @@
 //! One streaming pass over the bytes with the `csv` crate (no quoting: a log is numbers),
 //! parsing only the needed columns into `f64` vectors as the rows come: memory is 8 bytes
 //! per kept value (×2 at most while a vector grows) plus one line, never the text. About
-//! 0.5 µs per row of the §6 log in a release build (200 000 rows in ≈ 0.1 s). Input that is
+//! 0.5 µs per row of the run log (docs/files.md) in a release build (200 000 rows in ≈ 0.1 s). Input that is
 //! not a log (`/dev/zero`, a file of zeros) is refused after at most [`MAX_LINE_BYTES`].
 
 use std::io::Read;
@@ -43,7 +43,7 @@ use stepdamp_profile::LogRow;
 /// The columns a run log must or may carry (docs/files.md, "Run log").
 pub const KNOWN_COLUMNS: [&str; 11] = stepdamp_profile::runlog::LOG_COLUMNS;
 
-/// Longest line accepted, in bytes. A §6 row is about 200 bytes and a header of
+/// Longest line accepted, in bytes. A run-log row is about 200 bytes and a header of
 /// [`MAX_COLUMNS`] 60-character names 60 KiB; anything longer is not a run log, and the
 /// bound keeps one line's buffer small whatever the input.
 pub const MAX_LINE_BYTES: usize = 64 * 1024;
@@ -53,7 +53,7 @@ pub const MAX_LINE_BYTES: usize = 64 * 1024;
 /// `Nr·θ = 5·10¹⁰` is 8·10⁻⁶ rad, and grows with θ) and the Park transform overflows to NaN.
 pub const MAX_ANGLE_RAD: f64 = 1e9;
 
-/// Most columns a header may have (the §6 log has 9; tools add a few dozen at most).
+/// Most columns a header may have (the run log has 11; tools add a few dozen at most).
 pub const MAX_COLUMNS: usize = 1024;
 
 /// Most characters of one text from the file (a value, a column name) quoted in a message.

@@ -10,7 +10,7 @@
 //!    the position-loop bandwidth so that its stiffness `J·ω_b²` is at least
 //!    [`PlanOptions::stiffness_margin`]` × S` (2 by default), and at least
 //!    [`PlanOptions::min_servo_bandwidth_hz`]. `A_k` comes from the base profile; when it
-//!    has no detent, typical values are assumed (design.md §7): `A_4` 5 %, `A_2` 2.5 %,
+//!    has no detent, typical values are assumed (docs/identification.md): `A_4` 5 %, `A_2` 2.5 %,
 //!    `A_1` 1.5 % of the holding torque `√2·Km·I_hold`. The velocity filter is put at the
 //!    loop bandwidth: a higher corner passes more encoder-quantisation noise into the
 //!    torque, a lower one costs phase margin.
@@ -207,7 +207,7 @@ impl From<stepdamp_sim::SimError> for PlanError {
     }
 }
 
-/// Typical detent when the profile has none (design.md §7): `A_4` 5 %, `A_2` 2.5 %,
+/// Typical detent when the profile has none (docs/identification.md): `A_4` 5 %, `A_2` 2.5 %,
 /// `A_1` 1.5 % of the two-phase holding torque `√2·Km·I_hold`.
 pub fn assumed_detent(p: &Profile) -> Vec<DetentTerm> {
     let hold = std::f64::consts::SQRT_2 * p.motor.km_nm_per_a * p.drive.holding_current_a;

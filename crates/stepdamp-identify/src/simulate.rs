@@ -115,7 +115,7 @@ pub struct PlanRun {
 /// servo mode with the plan's controller, compensation off, the options' current noise, the
 /// motor's encoder) in parallel with deterministic seeds (the same as [`simulate_plan`]
 /// with `o.seed`), and writes one run-log CSV per run into `out_dir` (`<run name>.csv`,
-/// design.md §6 columns), creating it if needed. Each file is written to a temporary name
+/// docs/files.md columns), creating it if needed. Each file is written to a temporary name
 /// and renamed when complete; on an error, the files already written are removed again.
 pub fn run_plan(
     motor: &Profile,

@@ -1,4 +1,4 @@
-//! Acceptance tests of issue 4, on the simulator: identification accuracy on the
+//! Acceptance tests of identification on the simulator: identification accuracy on the
 //! `patent-motor` preset (through log files written by [`run_plan`]) and on 50 seeded random
 //! motors, the open-loop compensation the identified profile achieves, refinement, speed.
 
@@ -573,7 +573,7 @@ fn currents_out_of_range_are_an_error_naming_the_logs_not_a_profile_with_infinit
 
 #[test]
 fn a_single_log_fits_what_it_determines_and_holds_j_and_d_at_the_base_saying_which() {
-    // Issue 12 item 5: one run used to fail with "regressors are linearly dependent" (J's
+    // Identification from any subset of runs: one run used to fail with "regressors are linearly dependent" (J's
     // instrument is a combination of the harmonic regressors within one log).
     let m = patent();
     let o = PlanOptions { electrical_periods: 15.0, min_steady_s: 1.0, ..PlanOptions::default() };

@@ -1,4 +1,4 @@
-//! A validation a user can trust (issue 11, item 3): how much of the effort's periodic ripple
+//! A validation a user can trust: how much of the effort's periodic ripple
 //! the identified model explains, per run and overall, and what is left, order by order.
 //!
 //! The torque the detent model must explain at each used sample is the fit's

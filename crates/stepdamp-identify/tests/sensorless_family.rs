@@ -1,4 +1,4 @@
-//! Issue 16's acceptance: the sensorless route on patent-motor and 50 seeded random motors.
+//! Acceptance of the sensorless route (docs/sensorless.md): the sensorless route on patent-motor and 50 seeded random motors.
 //!
 //! Each motor: patent-motor's winding and drive, detent amplitudes 4–30 mN·m for orders 1,
 //! 2 and 4 with random phases, `J` ×0.5–3 (the base keeps patent-motor's), `Fs` 5–20 mN·m,

@@ -1,4 +1,4 @@
-//! Issue 16's "logs written by other simulators": the sensorless route on open-loop logs
+//! Logs written by another simulator: the sensorless route on open-loop logs
 //! written by the independent generator of `independent/open_loop.rs` (its own PWM bridge,
 //! PI current loop with a computation delay, RK4 plant, Karnopp and smooth friction; no code
 //! of `stepdamp-sim` or `stepdamp-core`), performing exactly the plan CSV that

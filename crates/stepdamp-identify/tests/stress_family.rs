@@ -1,4 +1,4 @@
-//! Issue 11's stress family: identification on logs this repository did not write.
+//! The stress family: identification on logs this repository did not write.
 //!
 //! 50 seeded random motors simulated by the independent generator of `independent/` (half
 //! with smooth-creep friction, half Stribeck; a drive tuned by its own rule at 40–80 Hz;

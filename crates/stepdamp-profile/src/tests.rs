@@ -191,7 +191,7 @@ fn the_patent_motor_preset_is_the_cores_reference_controller() {
 
 #[test]
 fn an_endless_or_huge_file_is_refused_after_reading_the_profile_limit() {
-    // `motor check /dev/zero` read without end before the bound (issue 12).
+    // `motor check /dev/zero` read without end before the bound.
     let e = Profile::from_file(std::path::Path::new("/dev/zero")).unwrap_err().to_string();
     assert!(e.contains("/dev/zero") && e.contains(&MAX_PROFILE_BYTES.to_string()), "{e}");
     let dir = tempfile::tempdir().unwrap();

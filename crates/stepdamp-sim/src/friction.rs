@@ -1,4 +1,4 @@
-//! Friction laws of the plant (issue 11, item 1), as pure functions of the speed.
+//! Friction laws of the plant, as pure functions of the speed.
 //!
 //! Sign convention: the friction torque *on the rotor* is `−friction_nm(ω)`, i.e. the
 //! functions return the torque that opposes the motion, positive for `ω > 0`. The viscous

@@ -1,4 +1,4 @@
-//! The two-phase hybrid stepper, its friction and its load, in `f64` (design.md §2).
+//! The two-phase hybrid stepper, its friction and its load, in `f64` (docs/design.md#the-plant).
 //!
 //! ```text
 //! L di_a/dt = v_a − R i_a + Km ω sin θe        θe = Nr θ

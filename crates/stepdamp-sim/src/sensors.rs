@@ -1,4 +1,4 @@
-//! Sensor imperfections of a real drive (issue 11, item 1), as pure functions: per-phase
+//! Sensor imperfections of a real drive, as pure functions: per-phase
 //! current-sensor offset and gain mismatch, and encoder eccentricity.
 //!
 //! * **Current sensors**: the drive reads `i_meas = g·i + o` per phase, with gain `g = 1 + ε`

@@ -31,7 +31,7 @@ pub struct SweepSpec {
     pub options: SimOptions,
 }
 
-/// One row of the sweep table (design.md §6; column names are the field names).
+/// One row of the sweep table (docs/files.md; column names are the field names).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct SweepRow {
     /// Control mode (`open-loop` or `servo` in the table).

@@ -1,4 +1,4 @@
-//! Physics and acceptance tests of the closed loop against theory (issue 3), measured on
+//! Physics and acceptance tests of the closed loop against theory (docs/design.md#theory-the-tests-lean-on), measured on
 //! the `patent-motor` preset.
 
 use crate::*;
@@ -271,7 +271,7 @@ fn holding_current_sets_the_natural_frequency() {
     assert!((w - wn).abs() < 0.01 * wn, "ring-down at {w:.1} rad/s, theory {wn:.1}");
 }
 
-// ---- Issue 5: open-loop compensation at the estimated rotor angle. ----
+// ---- Beyond the patent: open-loop compensation at the estimated rotor angle. ----
 
 /// Open-loop sweep over the README grid with the given compensations.
 fn open_loop_sweep(motor: &Profile, controller: &Profile, comps: &[Compensation], load: f64) -> Vec<SweepRow> {
@@ -310,7 +310,7 @@ fn estimated_angle_holds_under_a_load_of_30_percent_of_peak_torque() {
 
 #[test]
 fn estimated_angle_holds_under_load_with_a_profile_identified_at_no_load() {
-    // Issue 5: identify once at no load, then change the load without re-identifying. The
+    // Identify once at no load, then change the load without re-identifying. The
     // controller runs the profile `identify` wrote from the no-load servo runs.
     let p = patent();
     let identified =

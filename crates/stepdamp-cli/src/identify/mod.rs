@@ -1,5 +1,5 @@
 //! `stepdamp identify`: detent harmonics and friction from servo-mode run logs
-//! (design.md §5), the experiment plan, simulated runs, refinement, the static route.
+//! (docs/design.md#identification), the experiment plan, simulated runs, refinement, the static route.
 //!
 //! ```text
 //! stepdamp identify --log a.csv --log b.csv --motor base.toml --out identified.toml [--orders 1,2,4] [--report DIR]

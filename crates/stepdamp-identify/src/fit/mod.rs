@@ -1,5 +1,5 @@
 //! Least-squares identification of detent harmonics and friction from servo-mode logs
-//! (design.md §5).
+//! (docs/design.md#identification).
 //!
 //! # Model
 //!

@@ -1,6 +1,6 @@
 //! The rotor's electrical angle from the drive's own voltages and currents (no sensor).
 //!
-//! The winding equations (design.md §2, docs/sensorless.md) are `v = R i + L di/dt + dλ/dt`
+//! The winding equations (docs/design.md#the-plant, docs/sensorless.md) are `v = R i + L di/dt + dλ/dt`
 //! with the rotor flux linkage `λ = (Km/Nr)(cos θe, sin θe)` (its derivative is the
 //! back-EMF `Km ω (−sin θe, cos θe)`). So
 //!

@@ -2,7 +2,7 @@
 //!
 //! Written without any code of `stepdamp-sim` or `stepdamp-core`, so that identification is
 //! tested on logs this repository's simulator did not write. It models the class of motor
-//! and drive of issue 11 in its own, simple way:
+//! and drive of the stress family in its own, simple way:
 //!
 //! * **Rotor**: `J·dω/dt = Km·i_q·cos(Nr·(θ − θ_fb)) − Σ A_k sin(k·Nr·θ + φ_k) − F(ω) − D·ω`,
 //!   integrated with a semi-implicit Euler step at 4 sub-steps per control period: `ω` is
@@ -25,7 +25,7 @@
 //!
 //! The output is a CSV run log with the columns of the repository's log format.
 //!
-//! [`open_loop`] is its counterpart for the sensorless route (issue 16): an open-loop drive
+//! [`open_loop`] is its counterpart for the sensorless route: an open-loop drive
 //! (PWM bridge, PI current loop) that performs the sensorless plan CSV and logs currents and
 //! applied voltages.
 
@@ -117,7 +117,7 @@ pub struct Drive {
     pub current_noise_a: f64,
 }
 
-/// The stress family of issue 11: motor `seed` (orders 1, 2, 4 at 4–30 mN·m with random
+/// The stress family: motor `seed` (orders 1, 2, 4 at 4–30 mN·m with random
 /// phases, `Fs` 5–20 mN·m, `J` ×0.5–3 of 4e-5 kg·m², `Km` 0.3 N·m/A, `Nr` 50, `D` 1e-3
 /// N·m·s/rad), smooth creep for even seeds, Stribeck for odd ones; and its drive (bandwidth
 /// 40–80 Hz, tuned for the true `J`, current noise 0.01 A).

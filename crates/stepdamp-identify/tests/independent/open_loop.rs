@@ -1,4 +1,4 @@
-//! An independent generator of sensorless open-loop run logs (issue 16).
+//! An independent generator of sensorless open-loop run logs.
 //!
 //! Written without any code of `stepdamp-sim` or `stepdamp-core`, so that the sensorless
 //! route is tested on logs this repository's simulator did not write. Its own models:
