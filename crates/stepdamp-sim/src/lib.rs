@@ -3,9 +3,9 @@
 //! A fast, physically honest simulator of a two-phase hybrid stepper motor, its drive and
 //! its load (docs/design.md#the-plant, docs/design.md#the-drive-and-its-control-laws),
 //! closed around the very controller that runs on the chip (`stepdamp-core`). `f64` plant,
-//! RK4 with zero-order-hold voltages, Karnopp stick/slip Coulomb friction, any list of detent harmonics, ADC and encoder quantisation, current
-//! noise, a one-period computation delay, finite bus voltage through the patent's
-//! three-leg stage.
+//! RK4 with zero-order-hold voltages, Karnopp stick/slip Coulomb friction, any list of
+//! detent harmonics, ADC and encoder quantisation, current noise, a one-period computation
+//! delay, finite bus voltage through the patent's three-leg stage.
 //!
 //! ```
 //! use stepdamp_sim::{ClosedLoop, Compensation, Profile, RunSpec, SimOptions, run};
