@@ -149,6 +149,7 @@ pub fn sweep<'py>(
         compensations: compensations.iter().map(|c| compensation(c)).collect::<PyResult<_>>()?,
         run: RunSpec::for_duration(1.0, duration_s),
         options: options(substeps, current_noise_a, seed, load_torque_nm),
+        table: None,
     };
     let rows = py.allow_threads(|| stepdamp_sim::sweep(&motor, &ctrl, &spec, &|| {})).map_err(err)?;
     let t = PyDict::new(py);

@@ -109,8 +109,8 @@ class SweepSummary(dict):
     """The summary of a sweep, the library's ``SweepSummary`` (the CLI's ``sweep --format
     json``, key for key): ``motor``, ``natural_frequency_rad_s`` (rad/s), ``damping_ratio``,
     ``resonances`` (``[{order, speed_rad_s}]``, rad/s, highest order first), ``from_rad_s``,
-    ``to_rad_s`` and ``modes``: per mode ``{mode, lanes, near_resonances}``, where ``lanes``
-    gives per compensation the median RMS and worst peak-to-peak velocity error (rad/s) and
+    ``to_rad_s`` and ``modes``: per mode ``{mode, compensations, near_resonances}``, where
+    ``compensations`` gives per compensation the median RMS and worst peak-to-peak velocity error (rad/s) and
     their ratios to compensation off (``vs_off``: off / this, how many times less), and
     ``near_resonances`` the highest peak-to-peak error within ±10 % of each resonance speed
     per compensation (``peaks``: ``[{compensation, pp_rad_s, vs_off}]``). A diverged run's

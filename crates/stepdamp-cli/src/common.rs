@@ -8,7 +8,7 @@ use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
 use stepdamp_core::Mode;
-use stepdamp_sim::{Compensation, Profile};
+use stepdamp_sim::{Compensation, Profile, SimError};
 
 /// Loads a preset or a TOML profile, with the reason on failure.
 pub fn load_motor(name_or_path: &str) -> Result<Profile> {
@@ -30,6 +30,21 @@ pub fn print_json(value: &impl serde::Serialize) -> Result<()> {
     let text = serde_json::to_string(value).context("cannot serialise the result")?;
     outln!("{text}");
     Ok(())
+}
+
+/// A simulation error naming the command-line flag that set the value, where one did:
+/// `flags` maps the error's `what` ([`SimError::Option`]) to a flag, after the options every
+/// simulating command shares (`--substeps`, `--current-noise`, `--load-torque`).
+pub fn sim_error_with_flag(e: SimError, flags: &[(&str, &str)]) -> anyhow::Error {
+    const SHARED: [(&str, &str); 3] =
+        [("substeps", "--substeps"), ("current noise", "--current-noise"), ("load torque", "--load-torque")];
+    match e {
+        SimError::Option { what, reason } => match flags.iter().chain(&SHARED).find(|(w, _)| *w == what) {
+            Some((_, flag)) => anyhow!("{flag} {reason}"),
+            None => SimError::Option { what, reason }.into(),
+        },
+        e => e.into(),
+    }
 }
 
 /// A clap value parser for a library's named choice (made with

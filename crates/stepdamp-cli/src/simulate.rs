@@ -1,13 +1,13 @@
 //! `stepdamp simulate`: one constant-speed run, optionally logged per control period.
 
 use crate::Global;
-use crate::common::{ChoiceList, load_motor, parse_compensations, parse_modes};
+use crate::common::{ChoiceList, load_motor, parse_compensations, parse_modes, sim_error_with_flag};
 use anyhow::{Context, Result, anyhow, bail};
 use std::path::PathBuf;
 use stepdamp_core::Mode;
 use stepdamp_sim::runlog::{FromRecord, LogRow};
 use stepdamp_sim::{
-    ClosedLoop, Compensation, ESTIMATED_IS_OPEN_LOOP_ONLY, RunSpec, SimError, SimOptions, check_mode_compensation,
+    ClosedLoop, Compensation, ESTIMATED_IS_OPEN_LOOP_ONLY, RunSpec, SimOptions, check_mode_compensation,
     check_same_hardware, run as run_spec,
 };
 
@@ -88,20 +88,21 @@ pub fn run(a: SimulateArgs, _g: &Global) -> Result<()> {
     let spec = RunSpec { dwell_s: a.dwell, ramp_s: a.ramp, ..RunSpec::for_duration(a.speed, a.duration) };
     let pwm = motor.drive.pwm_hz;
     let nr = motor.motor.pole_pairs;
-    spec.check(pwm, nr).map_err(|e| match e {
-        // Name the flag: the run's duration, speed, dwell and ramp are the options'.
-        SimError::Option { what: what @ ("duration" | "speed" | "dwell" | "ramp"), reason } => {
-            anyhow!("--{what} {reason}")
-        }
-        e => e.into(),
-    })?;
+    // Name the flag: the run's duration, speed, dwell and ramp are the options'.
+    let flag_error = |e| {
+        sim_error_with_flag(
+            e,
+            &[("duration", "--duration"), ("speed", "--speed"), ("dwell", "--dwell"), ("ramp", "--ramp")],
+        )
+    };
+    spec.check(pwm, nr).map_err(flag_error)?;
     let opts = SimOptions {
         current_noise_a: a.current_noise,
         seed: a.seed,
         load_torque_nm: a.load_torque,
         ..SimOptions::default()
     };
-    let mut lp = ClosedLoop::new(&motor, &controller, *mode, *comp, &opts)?;
+    let mut lp = ClosedLoop::new(&motor, &controller, *mode, *comp, &opts).map_err(flag_error)?;
     // The log is streamed to a temporary file next to its target and moved into place
     // when complete (a device, FIFO or `-` is written straight through), so an error or
     // an interruption leaves nothing half-written.
@@ -141,8 +142,8 @@ pub fn run(a: SimulateArgs, _g: &Global) -> Result<()> {
     outln!(
         "{} {} compensation {} at {} rad/s: velocity error rms {:.4} rad/s, pp {:.4} rad/s, max load angle {:.3} electrical rad{}",
         motor.name,
-        stepdamp_sim::mode_name(*mode),
-        stepdamp_sim::compensation_name(*comp),
+        mode.name(),
+        comp.name(),
         a.speed,
         m.vel_err_rms_rad_s,
         m.vel_err_pp_rad_s,

@@ -3,15 +3,15 @@
 use crate::Global;
 use crate::common::{
     AtomicFiles, ChoiceList, Format, load_motor, parse_compensations, parse_modes, print_json, progress,
+    sim_error_with_flag,
 };
 use crate::plot::{Marker, sweep_plot};
-use anyhow::{Context, Result, anyhow, bail};
+use anyhow::{Context, Result, bail};
 use std::path::PathBuf;
 use std::time::Instant;
 use stepdamp_core::Mode;
 use stepdamp_sim::{
-    Compensation, ESTIMATED_IS_OPEN_LOOP_ONLY, RunSpec, SimError, SimOptions, SweepRow, SweepSpec, SweepSummary,
-    linear_grid, sweep_with_table,
+    Compensation, RunSpec, SimError, SimOptions, SweepRow, SweepSpec, SweepSummary, check_substeps, linear_grid,
 };
 
 /// Arguments of `stepdamp sweep`.
@@ -69,7 +69,9 @@ pub struct SweepArgs {
     pub format: Format,
 }
 
-/// Builds the sweep specification after checking every argument.
+/// Builds the sweep specification after checking the arguments that only the command line
+/// has (the grid, the duration's bounds, the substeps as written); the rest is checked by
+/// [`SweepSpec::validate`] ([`flag_error`] names the flags).
 pub fn spec_of(a: &SweepArgs) -> Result<SweepSpec> {
     if !(a.from.is_finite() && a.to.is_finite()) {
         bail!("--from {} / --to {}: must be finite numbers", a.from, a.to);
@@ -89,32 +91,27 @@ pub fn spec_of(a: &SweepArgs) -> Result<SweepSpec> {
     if !(a.duration.is_finite() && a.duration >= 0.2 && a.duration <= 1000.0) {
         bail!("--duration {}: must be between 0.2 and 1000 s", a.duration);
     }
-    if !(a.load_torque.is_finite() && a.load_torque >= 0.0) {
-        bail!("--load-torque {}: must be a finite number ≥ 0 N·m", a.load_torque);
-    }
-    if !(a.current_noise.is_finite() && a.current_noise >= 0.0) {
-        bail!("--current-noise {}: must be a finite number ≥ 0 A", a.current_noise);
-    }
-    if !(1..=1000).contains(&a.substeps) {
-        bail!("--substeps {}: must be in 1..=1000", a.substeps);
-    }
-    let (modes, compensations) = (a.mode.items.clone(), a.compensation.items.clone());
-    if compensations.contains(&Compensation::Estimated) && !modes.contains(&Mode::OpenLoop) {
-        bail!("--mode {} --compensation estimated: {ESTIMATED_IS_OPEN_LOOP_ONLY}", a.mode);
-    }
+    let substeps = check_substeps(a.substeps).map_err(flag_error)?;
     Ok(SweepSpec {
         speeds_rad_s: linear_grid(a.from, a.to, a.points as usize),
-        modes,
-        compensations,
+        modes: a.mode.items.clone(),
+        compensations: a.compensation.items.clone(),
         run: RunSpec::for_duration(a.from, a.duration),
         options: SimOptions {
-            substeps: a.substeps as u32,
+            substeps,
             current_noise_a: a.current_noise,
             seed: a.seed,
             load_torque_nm: a.load_torque,
             ..SimOptions::default()
         },
+        table: None,
     })
+}
+
+/// A sweep's [`SimError`] naming the flag that set the value: the run's duration is
+/// `--duration`, and a speed out of range is the grid's highest, `--to`.
+fn flag_error(e: SimError) -> anyhow::Error {
+    sim_error_with_flag(e, &[("duration", "--duration"), ("speed", "--to")])
 }
 
 /// Resonance markers for the plot.
@@ -131,8 +128,8 @@ pub fn run(a: SweepArgs, g: &Global) -> Result<()> {
         Some(c) => (load_motor(c).context("--controller-motor")?, c.as_str()),
         None => (motor.clone(), a.motor.as_str()),
     };
-    let spec = spec_of(&a)?;
-    let table = match &a.table {
+    let mut spec = spec_of(&a)?;
+    spec.table = match &a.table {
         Some(path) => {
             let bytes = std::fs::read(path).with_context(|| format!("--table {}", path.display()))?;
             let (t, kind) = stepdamp_export::load_table(&bytes, &path.display().to_string(), None)?;
@@ -141,21 +138,15 @@ pub fn run(a: SweepArgs, g: &Global) -> Result<()> {
         }
         None => None,
     };
-    spec.validate_with_table(&motor, &a.motor, &controller, controller_name, table.as_ref()).map_err(|e| match e {
-        // The run's duration is the option's; the speeds are --from/--to.
-        SimError::Option { what: "duration", reason } => anyhow!("--duration {reason}"),
-        // The highest speed of the grid is --to.
-        SimError::Option { what: "speed", reason } => anyhow!("--to {reason}"),
-        e => e.into(),
-    })?;
+    let checked = spec.validate(&motor, &a.motor, &controller, controller_name).map_err(flag_error)?;
     if spec.modes.contains(&Mode::Servo) && spec.compensations.contains(&Compensation::Estimated) {
         eprintln!("note: estimated compensation is run in open loop only (servo uses the encoder angle)");
     }
     let mut files = AtomicFiles::in_dir_removed_on_failure(&a.out)?;
-    let lanes = spec.runs();
-    let pb = progress(lanes as u64, g.quiet, "sweep");
+    let runs = spec.runs();
+    let pb = progress(runs as u64, g.quiet, "sweep");
     let t0 = Instant::now();
-    let rows = sweep_with_table(&motor, &controller, &spec, table.as_ref(), &|| pb.inc(1))?;
+    let rows = checked.run(&|| pb.inc(1))?;
     pb.finish_and_clear();
     let wall = t0.elapsed().as_secs_f64();
 
@@ -180,9 +171,9 @@ pub fn run(a: SweepArgs, g: &Global) -> Result<()> {
         return print_json(&summary);
     }
     out!("{summary}");
-    let simulated = lanes as f64 * spec.run.duration_s;
+    let simulated = runs as f64 * spec.run.duration_s;
     outln!(
-        "{lanes} runs, {simulated:.0} s simulated in {wall:.2} s wall ({:.0} simulated s per wall s)",
+        "{runs} runs, {simulated:.0} s simulated in {wall:.2} s wall ({:.0} simulated s per wall s)",
         simulated / wall
     );
     for w in written {

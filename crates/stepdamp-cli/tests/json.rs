@@ -67,10 +67,11 @@ fn sweep_json_is_the_library_sweep_summary() {
         compensations: vec![Compensation::Off, Compensation::Patent],
         run: RunSpec::for_duration(4.0, 0.3),
         options: SimOptions::default(),
+        table: None,
     };
     let rows = sweep(&motor, &motor, &spec, &|| {}).unwrap();
     let want = serde_json::to_value(SweepSummary::new(&motor, &rows)).unwrap();
     assert_same(&got, &want);
     assert_eq!(got["modes"][0]["mode"], "open-loop");
-    assert_eq!(got["modes"][0]["lanes"][1]["compensation"], "patent");
+    assert_eq!(got["modes"][0]["compensations"][1]["compensation"], "patent");
 }

@@ -7,7 +7,7 @@ use crate::ExportError;
 use rayon::prelude::*;
 use serde::Serialize;
 use stepdamp_core::{Compensation, Config, CorrectionTable, Mode};
-use stepdamp_sim::{ClosedLoop, Profile, RunSpec, SimOptions, controller_config, run};
+use stepdamp_sim::{ClosedLoop, Profile, RunSpec, SimOptions, run};
 
 /// One resonance.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -154,12 +154,10 @@ pub fn config_in(
     comp: Compensation,
     table: Option<&CorrectionTable>,
 ) -> Result<Config, ExportError> {
-    let cfg = match (comp, table) {
-        (Compensation::Table, Some(t)) => stepdamp_sim::controller_config_with_table(p, mode, t),
-        (Compensation::Table, None) => return Err(ExportError::Invalid("table compensation needs a table".into())),
-        _ => controller_config(p, mode, comp),
-    };
-    cfg.map_err(|e| ExportError::Sim(e.to_string()))
+    if comp == Compensation::Table && table.is_none() {
+        return Err(ExportError::Invalid("table compensation needs a table".into()));
+    }
+    p.controller_config(mode, comp, table).map_err(|e| ExportError::Sim(e.to_string()))
 }
 
 /// Predicts each compensation in `comps` against none (open loop), on `p`, at every detent order's

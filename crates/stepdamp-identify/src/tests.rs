@@ -189,6 +189,7 @@ fn open_loop_reductions_db(motor: &Profile, controller: &Profile) -> Vec<(u16, f
             compensations: vec![Compensation::Off, Compensation::Patent],
             run: RunSpec::at(w),
             options: SimOptions::default(),
+            table: None,
         };
         let rows = sweep(motor, controller, &spec, &|| {}).unwrap();
         let peak = |comp: &str| {

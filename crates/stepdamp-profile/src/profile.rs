@@ -4,7 +4,8 @@ use crate::data::ProfileData;
 use crate::error::ProfileError;
 use serde::Serialize;
 use stepdamp_core::{
-    Compensation, Config, ConfigError, DriveSettings, Harmonic, Mode, MotorModel, Params, ServoGains, Topology,
+    Compensation, Config, ConfigError, CorrectionTable, DriveSettings, Harmonic, Mode, MotorModel, Params, ServoGains,
+    Topology,
 };
 
 /// The detent orders of a typical hybrid stepper (1.8°, 50 teeth): the 4th harmonic of the
@@ -161,8 +162,21 @@ impl Profile {
         }
     }
 
-    /// The controller's configuration for `mode` and `compensation`.
-    pub fn controller_config(&self, mode: Mode, compensation: Compensation) -> Result<Config, ConfigError> {
-        Config::new(&self.params(&self.harmonics(), mode, compensation))
+    /// The controller's configuration for `mode` and `compensation`: the one mapping of a
+    /// profile to the core's [`Config`]. `table` is the correction table that
+    /// [`Compensation::Table`] replays ([`Config::with_table`]; other compensations ignore
+    /// it); table compensation without one is a [`ConfigError`].
+    pub fn controller_config(
+        &self,
+        mode: Mode,
+        compensation: Compensation,
+        table: Option<&CorrectionTable>,
+    ) -> Result<Config, ConfigError> {
+        let detent = self.harmonics();
+        let params = self.params(&detent, mode, compensation);
+        match table {
+            Some(t) => Config::with_table(&params, t),
+            None => Config::new(&params),
+        }
     }
 }

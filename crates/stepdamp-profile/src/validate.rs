@@ -170,7 +170,7 @@ pub(crate) fn check_derived(p: &Profile, origin: &str) -> Result<(), ProfileErro
     }
     for mode in [Mode::OpenLoop, Mode::Servo] {
         for comp in [Compensation::Off, Compensation::Patent, Compensation::Estimated] {
-            if let Err(e) = p.controller_config(mode, comp) {
+            if let Err(e) = p.controller_config(mode, comp, None) {
                 return Err(ProfileError::Controller { path: origin.to_string(), source: e });
             }
         }

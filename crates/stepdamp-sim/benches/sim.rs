@@ -57,6 +57,7 @@ fn bench(c: &mut Criterion) {
         compensations: vec![Compensation::Off, Compensation::Patent],
         run: RunSpec::at(1.0),
         options: SimOptions::default(),
+        table: None,
     };
     let mut g = c.benchmark_group("sweep");
     g.sample_size(10);

@@ -10,222 +10,14 @@
 //! the plant with `substeps` RK4 steps.
 
 use crate::lanes::{Integrator, StateLanes};
+use crate::options::{SimError, SimOptions, check_config_hardware, check_mode_compensation, check_same_hardware};
 use crate::plant::{PlantParams, PlantState};
-use crate::profile::{Profile, ProfileError};
+use crate::profile::Profile;
 use crate::sensors::{CurrentSensors, Eccentricity};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
-use stepdamp_core::{
-    Config, ConfigError, DriveSettings, Harmonic, LegDuties, Measurement, Mode, MotorModel, Params, ServoGains,
-    Signals, State, Topology, step,
-};
-
-pub use stepdamp_core::Compensation;
-
-/// Name of a compensation in tables and on the command line ([`Compensation::name`]).
-pub fn compensation_name(c: Compensation) -> &'static str {
-    c.name()
-}
-
-/// Name of a control mode in tables and on the command line ([`Mode::name`]).
-pub fn mode_name(m: Mode) -> &'static str {
-    m.name()
-}
-
-/// Simulation options (the physics of the drive that a profile does not describe).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SimOptions {
-    /// RK4 steps per control period (≥ 1). One is the default: against two, it changes
-    /// the sweep's velocity-error metrics by well under the 1 % step-convergence tolerance
-    /// (test `halving_the_integration_step_changes_the_sweep_metric_by_under_one_percent`).
-    pub substeps: u32,
-    /// Standard deviation of the current-sensor noise in A.
-    pub current_noise_a: f64,
-    /// ADC quantisation step of the current samples in A (0 = none).
-    pub current_lsb_a: f64,
-    /// Seed of the noise generator.
-    pub seed: u64,
-    /// Constant load torque in N·m opposing the commanded direction of travel (≥ 0).
-    pub load_torque_nm: f64,
-}
-
-impl Default for SimOptions {
-    fn default() -> Self {
-        SimOptions { substeps: 1, current_noise_a: 0.0, current_lsb_a: 0.0, seed: 1, load_torque_nm: 0.0 }
-    }
-}
-
-/// Why a simulation could not be set up.
-#[derive(Debug, thiserror::Error)]
-pub enum SimError {
-    /// The controller rejected its configuration.
-    #[error("controller configuration: {0}")]
-    Config(#[from] ConfigError),
-    /// An option is out of range.
-    #[error("{what}: {reason}")]
-    Option {
-        /// The option.
-        what: &'static str,
-        /// Why.
-        reason: String,
-    },
-    /// The simulated motor's profile is invalid.
-    #[error("{0}")]
-    Profile(#[from] ProfileError),
-    /// The controller's profile describes other drive or encoder hardware than the
-    /// simulated motor's ([`check_same_hardware`]).
-    #[error(
-        "{motor} and {controller} differ in {key} ({motor_value} vs {controller_value}): the controller's profile may \
-         differ in the motor model (R, L, Km, detent, friction) and controller settings, not in the drive or encoder"
-    )]
-    HardwareMismatch {
-        /// The simulated motor's profile (file or preset name).
-        motor: String,
-        /// The controller's profile (file or preset name).
-        controller: String,
-        /// The key, e.g. `drive.pwm_hz`.
-        key: &'static str,
-        /// Its value in the motor's profile.
-        motor_value: String,
-        /// Its value in the controller's profile.
-        controller_value: String,
-    },
-    /// The simulation diverged: a plant state became infinite or NaN (a profile or an
-    /// option far outside what a real motor and drive can be). The run is stopped there.
-    #[error("the simulation diverged at t = {t_s} s ({what})")]
-    Diverged {
-        /// Simulated time of the first non-finite sample in s.
-        t_s: f64,
-        /// What diverged, e.g. `rotor speed ω = NaN rad/s`, after the run's name if any.
-        what: String,
-    },
-    /// A combination of control mode and compensation that does not exist.
-    #[error("compensation {comp} in {mode} mode: {reason}")]
-    Unsupported {
-        /// The mode.
-        mode: &'static str,
-        /// The compensation.
-        comp: &'static str,
-        /// Why.
-        reason: &'static str,
-    },
-}
-
-/// Why estimated-angle compensation is not run in servo mode.
-pub const ESTIMATED_IS_OPEN_LOOP_ONLY: &str = "estimated applies to open loop; servo uses the encoder angle";
-
-/// Checks that a controller profile describes the same drive and encoder hardware as the
-/// simulated motor's: `drive.pwm_hz`, `drive.bus_voltage_v`, `drive.topology`,
-/// `drive.computation_delay_periods`, `encoder.counts_per_rev` and `motor.pole_pairs` must
-/// be equal (the simulation takes them from the motor, the controller from its own
-/// profile). The controller may differ in the motor model (R, L, Km, J, detent,
-/// friction) and in its own settings (holding current, current loop, `[servo]`): that is
-/// what a mis-identified motor is. `motor_name` and `controller_name` name the two
-/// profiles in the error (file paths or preset names).
-pub fn check_same_hardware(
-    motor: &Profile,
-    motor_name: &str,
-    controller: &Profile,
-    controller_name: &str,
-) -> Result<(), SimError> {
-    let (m, c) = (motor, controller);
-    let keys: [(&'static str, String, String); 6] = [
-        ("drive.pwm_hz", m.drive.pwm_hz.to_string(), c.drive.pwm_hz.to_string()),
-        ("drive.bus_voltage_v", m.drive.bus_voltage_v.to_string(), c.drive.bus_voltage_v.to_string()),
-        ("drive.topology", m.drive.topology.as_str().to_string(), c.drive.topology.as_str().to_string()),
-        (
-            "drive.computation_delay_periods",
-            m.drive.computation_delay_periods.to_string(),
-            c.drive.computation_delay_periods.to_string(),
-        ),
-        ("encoder.counts_per_rev", m.encoder.counts_per_rev.to_string(), c.encoder.counts_per_rev.to_string()),
-        ("motor.pole_pairs", m.motor.pole_pairs.to_string(), c.motor.pole_pairs.to_string()),
-    ];
-    for (key, motor_value, controller_value) in keys {
-        if motor_value != controller_value {
-            return Err(SimError::HardwareMismatch {
-                motor: motor_name.to_string(),
-                controller: controller_name.to_string(),
-                key,
-                motor_value,
-                controller_value,
-            });
-        }
-    }
-    Ok(())
-}
-
-/// Checks that `comp` exists in `mode`: estimated-angle compensation is an open-loop law
-/// (servo mode evaluates the compensation at the encoder angle), and so are the drives'
-/// angle and table laws.
-pub fn check_mode_compensation(mode: Mode, comp: Compensation) -> Result<(), SimError> {
-    if mode == Mode::Servo && comp == Compensation::Estimated {
-        return Err(SimError::Unsupported {
-            mode: mode_name(mode),
-            comp: compensation_name(comp),
-            reason: ESTIMATED_IS_OPEN_LOOP_ONLY,
-        });
-    }
-    if mode == Mode::Servo && matches!(comp, Compensation::Angle | Compensation::Table) {
-        return Err(SimError::Unsupported {
-            mode: mode_name(mode),
-            comp: compensation_name(comp),
-            reason: "angle and table are the open-loop laws of microstepping drives",
-        });
-    }
-    Ok(())
-}
-
-/// Builds the core controller's configuration from a profile.
-pub fn controller_config(p: &Profile, mode: Mode, comp: Compensation) -> Result<Config, ConfigError> {
-    with_params(p, mode, comp, Config::new)
-}
-
-/// [`controller_config`] with [`Compensation::Table`] replaying `table`.
-pub fn controller_config_with_table(
-    p: &Profile,
-    mode: Mode,
-    table: &stepdamp_core::CorrectionTable,
-) -> Result<Config, ConfigError> {
-    with_params(p, mode, Compensation::Table, |params| Config::with_table(params, table))
-}
-
-fn with_params<R>(p: &Profile, mode: Mode, comp: Compensation, f: impl FnOnce(&Params<'_>) -> R) -> R {
-    let detent: Vec<Harmonic> = p
-        .motor
-        .detent
-        .iter()
-        .map(|h| Harmonic { order: h.order, amplitude_nm: h.amplitude_nm as f32, phase_rad: h.phase_rad as f32 })
-        .collect();
-    f(&Params {
-        motor: MotorModel {
-            km_nm_per_a: p.motor.km_nm_per_a as f32,
-            pole_pairs: p.motor.pole_pairs,
-            resistance_ohm: p.motor.resistance_ohm as f32,
-            inductance_h: p.motor.inductance_h as f32,
-            coulomb_friction_nm: p.motor.coulomb_friction_nm as f32,
-            detent: &detent,
-        },
-        drive: DriveSettings {
-            bus_voltage_v: p.drive.bus_voltage_v as f32,
-            pwm_hz: p.drive.pwm_hz as f32,
-            holding_current_a: p.drive.holding_current_a as f32,
-            current_limit_a: p.drive.current_limit_a as f32,
-            current_loop_bandwidth_hz: p.drive.current_loop_bandwidth_hz as f32,
-            topology: p.drive.topology.into(),
-            computation_delay_periods: p.drive.computation_delay_periods,
-        },
-        encoder_counts_per_rev: p.encoder.counts_per_rev,
-        servo: ServoGains::for_bandwidth(
-            p.motor.inertia_kg_m2 as f32,
-            p.servo.bandwidth_hz as f32,
-            p.servo.velocity_filter_hz as f32,
-        ),
-        mode,
-        compensation: comp,
-    })
-}
+use stepdamp_core::{Compensation, Config, LegDuties, Measurement, Mode, Signals, State, Topology, step};
 
 /// What one period shows: the plant as sampled, what the sensors read, and the
 /// controller's signals.
@@ -252,7 +44,7 @@ pub struct PeriodRecord {
 pub struct ClosedLoop {
     plant: PlantParams,
     /// The plant's integrator, one lane ([`crate::lanes`]; a sweep runs the same code over
-    /// four lanes).
+    /// [`crate::lanes::LANES`] lanes).
     integrator: Integrator<1>,
     pub(crate) x: PlantState,
     /// Boxed: with the drive-replay table a `Config` is about 8 kB, most of it never read
@@ -297,48 +89,17 @@ impl ClosedLoop {
     ) -> Result<Self, SimError> {
         check_same_hardware(motor, &motor.name, controller, &controller.name)?;
         check_mode_compensation(mode, comp)?;
-        let cfg = controller_config(controller, mode, comp)?;
+        let cfg = controller.controller_config(mode, comp, None)?;
         Self::with_config(motor, cfg, opts)
     }
 
     /// A loop around an already built controller configuration. The configuration must be
-    /// for the motor's pole pairs, PWM frequency, bus voltage and power stage (the profile
-    /// is valid by its type).
+    /// for the motor's pole pairs, PWM frequency, bus voltage and power stage
+    /// ([`check_config_hardware`]) and the options in range ([`SimOptions::check`]); the
+    /// profile is valid by its type.
     pub fn with_config(motor: &Profile, cfg: Config, opts: &SimOptions) -> Result<Self, SimError> {
-        let mismatch = |key: &'static str, m: String, c: String| SimError::HardwareMismatch {
-            motor: motor.name.clone(),
-            controller: "the controller configuration".to_string(),
-            key,
-            motor_value: m,
-            controller_value: c,
-        };
-        if cfg.pole_pairs() != motor.motor.pole_pairs {
-            return Err(mismatch("motor.pole_pairs", motor.motor.pole_pairs.to_string(), cfg.pole_pairs().to_string()));
-        }
-        let period = 1.0 / motor.drive.pwm_hz;
-        if (f64::from(cfg.period_s()) - period).abs() > 1e-6 * period {
-            return Err(mismatch("drive.pwm_hz", motor.drive.pwm_hz.to_string(), (1.0 / cfg.period_s()).to_string()));
-        }
-        let vdc = motor.drive.bus_voltage_v;
-        if (f64::from(cfg.bus_voltage_v()) - vdc).abs() > 1e-6 * vdc {
-            return Err(mismatch("drive.bus_voltage_v", vdc.to_string(), cfg.bus_voltage_v().to_string()));
-        }
-        if cfg.topology() != Topology::from(motor.drive.topology) {
-            let cfg_topology = crate::profile::TopologyName::from(cfg.topology()).as_str().to_string();
-            return Err(mismatch("drive.topology", motor.drive.topology.as_str().to_string(), cfg_topology));
-        }
-        if opts.substeps == 0 || opts.substeps > 1000 {
-            return Err(SimError::Option { what: "substeps", reason: format!("{} is not in 1..=1000", opts.substeps) });
-        }
-        for (what, v) in [
-            ("current noise", opts.current_noise_a),
-            ("current LSB", opts.current_lsb_a),
-            ("load torque", opts.load_torque_nm),
-        ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(SimError::Option { what, reason: format!("{v} must be a finite number ≥ 0") });
-            }
-        }
+        check_config_hardware(motor, &cfg)?;
+        opts.check()?;
         let plant = PlantParams::from_profile(motor);
         let h = 1.0 / motor.drive.pwm_hz / f64::from(opts.substeps);
         let band = plant.stick_band(h);
@@ -473,6 +234,7 @@ impl ClosedLoop {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::options::ESTIMATED_IS_OPEN_LOOP_ONLY;
     use crate::profile::ProfileData;
     use crate::runlog::{FromRecord, LogRow};
 
@@ -517,7 +279,7 @@ mod tests {
     #[test]
     fn with_config_takes_only_a_valid_profile_and_matches_the_configuration() {
         let good = patent();
-        let cfg = controller_config(&good, Mode::OpenLoop, Compensation::Patent).unwrap();
+        let cfg = good.controller_config(Mode::OpenLoop, Compensation::Patent, None).unwrap();
         // A bad profile cannot be built, so it cannot reach the loop.
         let e = good.edited("bad", |d| d.motor.detent[0].order = 0).unwrap_err().to_string();
         assert!(e.contains("motor.detent[0].order"), "{e}");

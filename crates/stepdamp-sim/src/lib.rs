@@ -23,6 +23,8 @@ pub mod closed_loop;
 pub mod friction;
 pub mod lanes;
 pub mod lockstep;
+pub mod metrics;
+pub mod options;
 pub mod plant;
 /// Motor profiles: [`stepdamp_profile`], re-exported where the simulator's users found them.
 pub mod profile {
@@ -34,16 +36,18 @@ pub mod sensors;
 pub mod summary;
 pub mod sweep;
 
-pub use closed_loop::{
-    ClosedLoop, Compensation, ESTIMATED_IS_OPEN_LOOP_ONLY, PeriodRecord, SimError, SimOptions, check_mode_compensation,
-    check_same_hardware, compensation_name, controller_config, controller_config_with_table, mode_name,
-};
+pub use closed_loop::{ClosedLoop, PeriodRecord};
 pub use lockstep::run_lockstep;
+pub use metrics::RunMetrics;
+pub use options::{
+    ESTIMATED_IS_OPEN_LOOP_ONLY, SimError, SimOptions, check_mode_compensation, check_same_hardware, check_substeps,
+};
 pub use plant::{PlantParams, PlantState};
 pub use profile::{PRESETS, Profile, ProfileError};
-pub use scenario::{RunMetrics, RunSpec, SETTLE_S, check_speed, max_speed_rad_s, run};
+pub use scenario::{RunSpec, SETTLE_S, check_speed, max_speed_rad_s, run};
+pub use stepdamp_core::{Compensation, CorrectionTable, Mode};
 pub use summary::SweepSummary;
-pub use sweep::{SweepRow, SweepSpec, linear_grid, sweep, sweep_with_table};
+pub use sweep::{CheckedSweep, SweepRow, SweepSpec, derived_seed, linear_grid, sweep};
 
 #[cfg(test)]
 mod tests;

@@ -11,8 +11,9 @@
 //! started: it has slipped past the unstable equilibrium. A run whose plant diverges
 //! (a non-finite sample) is stopped with [`SimError::Diverged`].
 
-use crate::closed_loop::{ClosedLoop, PeriodRecord, SimError};
-use crate::lockstep::Window;
+use crate::closed_loop::{ClosedLoop, PeriodRecord};
+use crate::metrics::{RunMetrics, VelocityErrorMeter};
+use crate::options::SimError;
 
 /// Largest commanded speed in rad/s a run of a motor with `pole_pairs` at `pwm_hz` accepts
 /// (either sign): the controller's own limit ([`stepdamp_core::max_speed_rad_s`]; beyond it
@@ -169,19 +170,6 @@ pub fn check_speed(w: f64, max: f64) -> Result<(), SimError> {
     }
 }
 
-/// Velocity-error metrics of a run.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct RunMetrics {
-    /// RMS of `ω − ω_cmd` over the window in rad/s.
-    pub vel_err_rms_rad_s: f64,
-    /// Peak-to-peak of `ω − ω_cmd` over the window in rad/s.
-    pub vel_err_pp_rad_s: f64,
-    /// The rotor slipped (more than π electrical rad from the command).
-    pub lost_sync: bool,
-    /// Largest `|Nr(θ_cmd − θ)|` after the start, electrical rad.
-    pub max_load_angle_e_rad: f64,
-}
-
 /// Runs `spec` on `lp` (fresh from [`ClosedLoop::new`]); `observe` sees every period.
 /// A run whose plant state becomes infinite or NaN is stopped there with
 /// [`SimError::Diverged`] (the diverged period is not observed).
@@ -191,17 +179,17 @@ pub fn run(
     pwm_hz: f64,
     mut observe: impl FnMut(usize, &PeriodRecord),
 ) -> Result<RunMetrics, SimError> {
-    let mut window = Window::new(spec, pwm_hz, lp.pole_pairs());
-    for k in 0..window.periods() {
-        let w_cmd = spec.speed_at(window.time(k));
+    let mut meter = VelocityErrorMeter::new(spec.periods(pwm_hz, lp.pole_pairs()), pwm_hz, lp.pole_pairs());
+    for k in 0..meter.periods() {
+        let w_cmd = spec.speed_at(meter.time(k));
         let rec = lp.period(w_cmd);
         // Measured against the speed the controller was commanded (f32, within its limit
         // by `check`), not the f64 one asked for.
         let w_ctl = f64::from(lp.controller_state().speed_command_rad_s());
-        window.add(k, w_ctl, &rec)?;
+        meter.add(k, w_ctl, &rec)?;
         observe(k, &rec);
     }
-    Ok(window.finish())
+    Ok(meter.finish())
 }
 
 #[cfg(test)]

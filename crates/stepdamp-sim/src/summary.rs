@@ -3,12 +3,11 @@
 //! off, and the peak-to-peak error near each resonance. `Display` is the text the command
 //! line prints; `Serialize` gives the same numbers to scripts (`--format json`).
 
-use crate::closed_loop::Compensation;
 use crate::profile::Profile;
 use crate::sweep::SweepRow;
 use serde::Serialize;
 use std::fmt;
-use stepdamp_core::Mode;
+use stepdamp_core::{Compensation, Mode};
 
 /// Half-width of the window around a resonance speed in which its peak is looked for, as a
 /// fraction of the speed (±10 %: the grid of the README's sweep has a point within it).
@@ -48,14 +47,14 @@ pub struct ModeSummary {
     /// The mode.
     pub mode: Mode,
     /// Per compensation, in table order.
-    pub lanes: Vec<LaneSummary>,
+    pub compensations: Vec<CompensationSummary>,
     /// Near each resonance, in the order of [`SweepSummary::resonances`].
     pub near_resonances: Vec<NearResonance>,
 }
 
-/// One compensation's lane of a mode.
+/// The runs of one compensation in one mode, over the sweep's speeds.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct LaneSummary {
+pub struct CompensationSummary {
     /// The compensation.
     pub compensation: Compensation,
     /// Median of the RMS velocity errors, rad/s (a diverged run counts as the highest).
@@ -66,7 +65,7 @@ pub struct LaneSummary {
     pub worst_at_rad_s: f64,
     /// Runs that lost synchronism.
     pub lost_sync: usize,
-    /// Runs in the lane.
+    /// Runs of this compensation in this mode.
     pub runs: usize,
     /// Compensation off over this one (how many times less), when both were run.
     pub vs_off: Option<Ratios>,
@@ -120,7 +119,8 @@ pub fn modes_and_compensations(rows: &[SweepRow]) -> (Vec<Mode>, Vec<Compensatio
     (modes, comps)
 }
 
-fn lane(rows: &[SweepRow], mode: Mode, comp: Compensation) -> Vec<&SweepRow> {
+/// The rows of `comp` in `mode`.
+pub(crate) fn runs_of(rows: &[SweepRow], mode: Mode, comp: Compensation) -> Vec<&SweepRow> {
     rows.iter().filter(|r| r.mode == mode && r.compensation == comp).collect()
 }
 
@@ -162,18 +162,18 @@ impl SweepSummary {
         let modes = modes
             .into_iter()
             .map(|mode| {
-                let off = lane(rows, mode, Compensation::Off);
-                let lanes = comps
+                let off = runs_of(rows, mode, Compensation::Off);
+                let compensations = comps
                     .iter()
                     .filter_map(|&comp| {
-                        let this = lane(rows, mode, comp);
+                        let this = runs_of(rows, mode, comp);
                         if this.is_empty() {
                             return None;
                         }
                         let (med, (worst, at)) = (median_rms(&this), worst_pp(&this));
                         let vs_off = (comp != Compensation::Off && !off.is_empty())
                             .then(|| Ratios { median_rms: median_rms(&off) / med, worst_pp: worst_pp(&off).0 / worst });
-                        Some(LaneSummary {
+                        Some(CompensationSummary {
                             compensation: comp,
                             median_rms_rad_s: med,
                             worst_pp_rad_s: worst,
@@ -191,7 +191,7 @@ impl SweepSummary {
                         let peaks = comps
                             .iter()
                             .filter_map(|&comp| {
-                                let pp = peak_near(&lane(rows, mode, comp), resonance.speed_rad_s)?;
+                                let pp = peak_near(&runs_of(rows, mode, comp), resonance.speed_rad_s)?;
                                 let vs_off = if comp == Compensation::Off { None } else { off_pp.map(|o| o / pp) };
                                 Some(Peak { compensation: comp, pp_rad_s: pp, vs_off })
                             })
@@ -199,7 +199,7 @@ impl SweepSummary {
                         NearResonance { resonance, peaks }
                     })
                     .collect();
-                ModeSummary { mode, lanes, near_resonances }
+                ModeSummary { mode, compensations, near_resonances }
             })
             .collect();
         SweepSummary {
@@ -245,7 +245,7 @@ impl fmt::Display for SweepSummary {
         writeln!(f, "resonance speeds ω_n/(k·Nr): {}", res.join(", "))?;
         for m in &self.modes {
             writeln!(f, "{}: velocity error over {:.2}..{:.2} rad/s", m.mode, self.from_rad_s, self.to_rad_s)?;
-            for l in &m.lanes {
+            for l in &m.compensations {
                 write!(
                     f,
                     "  {:>9}: median rms {:.4} rad/s, worst pp {:.4} rad/s at {:.2} rad/s, lost sync {}/{}",
@@ -308,7 +308,7 @@ mod tests {
             rows.push(row(Mode::Servo, Compensation::Patent, w, [0.1, 0.2, 0.3][i], [1.0, 2.0, 0.5][i]));
         }
         let sum = SweepSummary::new(&p, &rows);
-        let patent = sum.modes[0].lanes[1];
+        let patent = sum.modes[0].compensations[1];
         assert_eq!(patent.vs_off, Some(Ratios { median_rms: 2.0 / 0.2, worst_pp: 10.0 / 2.0 }));
         let s = sum.to_string();
         // Median rms 2.0 vs 0.2, worst pp 10 vs 2.

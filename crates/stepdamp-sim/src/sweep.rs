@@ -1,20 +1,19 @@
-//! Parallel velocity-error sweeps over a speed grid (rayon). Deterministic: every lane has
+//! Parallel velocity-error sweeps over a speed grid (rayon). Deterministic: every run has
 //! its own noise seed derived from the sweep seed and its index, so the table is the same
 //! on any number of threads.
 //!
 //! Estimated-angle compensation exists in open loop only: a sweep of both modes runs it in
-//! open loop and skips its servo lanes; a servo-only sweep that asks for it is an error.
+//! open loop and skips its servo runs; a servo-only sweep that asks for it is an error.
 
-use crate::closed_loop::{
-    ClosedLoop, Compensation, SimError, SimOptions, check_mode_compensation, check_same_hardware, controller_config,
-};
+use crate::closed_loop::ClosedLoop;
 use crate::lanes::LANES;
 use crate::lockstep::run_lockstep;
+use crate::options::{SimError, SimOptions, check_mode_compensation, check_same_hardware};
 use crate::profile::Profile;
 use crate::scenario::{RunSpec, check_speed, max_speed_rad_s};
 use rayon::prelude::*;
 use serde::Serialize;
-use stepdamp_core::{CorrectionTable, Mode};
+use stepdamp_core::{Compensation, Config, CorrectionTable, Mode};
 
 /// What to sweep.
 #[derive(Clone, Debug, PartialEq)]
@@ -27,8 +26,11 @@ pub struct SweepSpec {
     pub compensations: Vec<Compensation>,
     /// Run shape (its speed is replaced by each grid speed).
     pub run: RunSpec,
-    /// Simulation options (its seed is the base of the lane seeds).
+    /// Simulation options (its seed is the base of the runs' seeds).
     pub options: SimOptions,
+    /// The correction table that [`Compensation::Table`] replays (required when the
+    /// compensations include it; the other compensations ignore it).
+    pub table: Option<CorrectionTable>,
 }
 
 /// One row of the sweep table (docs/files.md; column names are the field names).
@@ -77,31 +79,21 @@ impl SweepSpec {
         self.pairs().len() * self.speeds_rad_s.len()
     }
 
-    /// Checks everything the sweep needs before anything is simulated: the same hardware in
-    /// both profiles ([`check_same_hardware`], naming them `motor_name` and
-    /// `controller_name`), at least one mode, compensation and speed, every speed and the
-    /// run shape ([`RunSpec::check`] at the lowest speed), the options and the
-    /// controller configurations.
-    pub fn validate(
-        &self,
-        motor: &Profile,
+    /// Checks everything the sweep needs before anything is simulated, and builds the
+    /// controller of every (mode, compensation) pair: the same hardware in both profiles
+    /// ([`check_same_hardware`], naming them `motor_name` and `controller_name`), at least
+    /// one mode, compensation and speed, every speed and the run shape ([`RunSpec::check`]
+    /// at the lowest speed), the options ([`SimOptions::check`]), a table when the
+    /// compensations include [`Compensation::Table`], and the controller configurations
+    /// ([`Profile::controller_config`]). What it returns runs the sweep without checking
+    /// again ([`CheckedSweep::run`]).
+    pub fn validate<'a>(
+        &'a self,
+        motor: &'a Profile,
         motor_name: &str,
         controller: &Profile,
         controller_name: &str,
-    ) -> Result<(), SimError> {
-        self.validate_with_table(motor, motor_name, controller, controller_name, None)
-    }
-
-    /// [`SweepSpec::validate`] with the table that [`Compensation::Table`] lanes replay
-    /// (required when the compensations include it).
-    pub fn validate_with_table(
-        &self,
-        motor: &Profile,
-        motor_name: &str,
-        controller: &Profile,
-        controller_name: &str,
-        table: Option<&CorrectionTable>,
-    ) -> Result<(), SimError> {
+    ) -> Result<CheckedSweep<'a>, SimError> {
         check_same_hardware(motor, motor_name, controller, controller_name)?;
         let empty = |what: &'static str| Err(SimError::Option { what, reason: "the list is empty".to_string() });
         if self.modes.is_empty() {
@@ -125,119 +117,114 @@ impl SweepSpec {
         // The longest electrical period is at the lowest speed: if that one fits, all do.
         let lowest = self.speeds_rad_s.iter().copied().fold(f64::INFINITY, |a, w| a.min(w.abs()));
         RunSpec { speed_rad_s: lowest, ..self.run }.check(motor.drive.pwm_hz, nr)?;
-        for (mode, comp) in self.pairs() {
-            let cfg = lane_config(controller, mode, comp, table)?;
-            ClosedLoop::with_config(motor, cfg, &self.options)?;
+        self.options.check()?;
+        if self.compensations.contains(&Compensation::Table) && self.table.is_none() {
+            return Err(SimError::Option {
+                what: "compensation",
+                reason: "table compensation needs a table (--table FILE)".to_string(),
+            });
         }
-        Ok(())
+        let configs = self
+            .pairs()
+            .into_iter()
+            .map(|(mode, comp)| Ok((mode, comp, controller.controller_config(mode, comp, self.table.as_ref())?)))
+            .collect::<Result<_, SimError>>()?;
+        Ok(CheckedSweep { motor, spec: self, configs })
     }
 }
 
-/// Runs the sweep; `tick` is called once per finished lane (from any thread). Runs go
-/// [`LANES`] at a time in lock-step ([`run_lockstep`]); a run that diverges makes the
-/// sweep fail with [`SimError::Diverged`] naming it.
-/// Rows come ordered by mode, then compensation, then speed; servo lanes with
-/// estimated-angle compensation are not run ([`SweepSpec::pairs`]). The spec is checked
-/// first ([`SweepSpec::validate`], naming the profiles by their `name`).
+/// A sweep whose specification and profiles passed [`SweepSpec::validate`], with the
+/// controller of each of its (mode, compensation) pairs.
+#[derive(Clone, Debug)]
+pub struct CheckedSweep<'a> {
+    motor: &'a Profile,
+    spec: &'a SweepSpec,
+    configs: Vec<(Mode, Compensation, Config)>,
+}
+
+/// Runs the sweep of `motor` driven by a controller configured from `controller`: checks it
+/// ([`SweepSpec::validate`], naming the profiles by their `name`), then runs it
+/// ([`CheckedSweep::run`]).
 pub fn sweep(
     motor: &Profile,
     controller: &Profile,
     spec: &SweepSpec,
     tick: &(dyn Fn() + Sync),
 ) -> Result<Vec<SweepRow>, SimError> {
-    sweep_with_table(motor, controller, spec, None, tick)
+    spec.validate(motor, &motor.name, controller, &controller.name)?.run(tick)
 }
 
-/// [`sweep`] with the table that [`Compensation::Table`] lanes replay.
-pub fn sweep_with_table(
-    motor: &Profile,
-    controller: &Profile,
-    spec: &SweepSpec,
-    table: Option<&CorrectionTable>,
-    tick: &(dyn Fn() + Sync),
-) -> Result<Vec<SweepRow>, SimError> {
-    // Fail before the parallel part on any bad input.
-    spec.validate_with_table(motor, &motor.name, controller, &controller.name, table)?;
-    let mut lanes = Vec::new();
-    for (mode, comp) in spec.pairs() {
-        let cfg = lane_config(controller, mode, comp, table)?;
-        for &w in &spec.speeds_rad_s {
-            lanes.push((mode, comp, cfg, w));
-        }
-    }
-    let pwm = motor.drive.pwm_hz;
-    // Groups of LANES runs go in lock-step (bit-identical to running each alone); a short
-    // last group repeats its last run to fill the lanes and drops the copies' results.
-    let groups: Vec<Result<Vec<Result<SweepRow, SimError>>, SimError>> = lanes
-        .par_chunks(LANES)
-        .enumerate()
-        .map(|(g, chunk)| {
-            let lane = |j: usize| (g * LANES + j.min(chunk.len() - 1), chunk[j.min(chunk.len() - 1)]);
-            let mut loops = Vec::with_capacity(LANES);
-            let mut specs = Vec::with_capacity(LANES);
-            for j in 0..LANES {
-                let (i, (_, _, cfg, w)) = lane(j);
-                let opts = SimOptions { seed: derived_seed(spec.options.seed, i as u64), ..spec.options };
-                // `validate` accepted this set-up; an error here would still be reported,
-                // not panicked on.
-                loops.push(ClosedLoop::with_config(motor, cfg, &opts)?);
-                specs.push(RunSpec { speed_rad_s: w, ..spec.run });
+impl CheckedSweep<'_> {
+    /// Runs the sweep; `tick` is called once per finished run (from any thread). Runs go
+    /// [`LANES`] at a time in lock-step ([`run_lockstep`], one run per SIMD lane); a run
+    /// that diverges makes the sweep fail with [`SimError::Diverged`] naming it. Rows come
+    /// ordered by mode, then compensation, then speed; servo runs with estimated-angle
+    /// compensation are not made ([`SweepSpec::pairs`]).
+    pub fn run(&self, tick: &(dyn Fn() + Sync)) -> Result<Vec<SweepRow>, SimError> {
+        let (motor, spec) = (self.motor, self.spec);
+        let mut runs = Vec::new();
+        for &(mode, comp, ref cfg) in &self.configs {
+            for &w in &spec.speeds_rad_s {
+                runs.push((mode, comp, cfg, w));
             }
-            let metrics = run_lockstep::<LANES>(&mut loops, &specs, pwm)?;
-            let rows = chunk
-                .iter()
-                .zip(metrics)
-                .map(|(&(mode, comp, _, w), m)| {
-                    tick();
-                    let m = m.map_err(|e| match e {
-                        SimError::Diverged { t_s, what } => SimError::Diverged {
-                            t_s,
-                            what: format!("{} {} at {w} rad/s: {what}", mode.name(), comp.name()),
-                        },
-                        e => e,
-                    })?;
-                    Ok(SweepRow {
-                        mode,
-                        compensation: comp,
-                        speed_cmd_rad_s: w,
-                        vel_err_rms_rad_s: m.vel_err_rms_rad_s,
-                        vel_err_pp_rad_s: m.vel_err_pp_rad_s,
-                        lost_sync: m.lost_sync,
-                    })
-                })
-                .collect();
-            Ok(rows)
-        })
-        .collect();
-    // The first error in table order, whatever thread met it first.
-    let mut rows = Vec::with_capacity(lanes.len());
-    for group in groups {
-        for row in group? {
-            rows.push(row?);
         }
-    }
-    Ok(rows)
-}
-
-/// The controller of one lane: [`Compensation::Table`] replays `table` (an error without one).
-fn lane_config(
-    controller: &Profile,
-    mode: Mode,
-    comp: Compensation,
-    table: Option<&CorrectionTable>,
-) -> Result<stepdamp_core::Config, SimError> {
-    match (comp, table) {
-        (Compensation::Table, Some(t)) => Ok(crate::controller_config_with_table(controller, mode, t)?),
-        (Compensation::Table, None) => Err(SimError::Option {
-            what: "compensation",
-            reason: "table compensation needs a table (--table FILE)".to_string(),
-        }),
-        _ => Ok(controller_config(controller, mode, comp)?),
+        let pwm = motor.drive.pwm_hz;
+        // Groups of LANES runs go in lock-step (bit-identical to running each alone); a short
+        // last group repeats its last run to fill the lanes and drops the copies' results.
+        let groups: Vec<Result<Vec<Result<SweepRow, SimError>>, SimError>> = runs
+            .par_chunks(LANES)
+            .enumerate()
+            .map(|(g, chunk)| {
+                let lane = |j: usize| (g * LANES + j.min(chunk.len() - 1), chunk[j.min(chunk.len() - 1)]);
+                let mut loops = Vec::with_capacity(LANES);
+                let mut specs = Vec::with_capacity(LANES);
+                for j in 0..LANES {
+                    let (i, (_, _, cfg, w)) = lane(j);
+                    let opts = SimOptions { seed: derived_seed(spec.options.seed, i as u64), ..spec.options };
+                    // `validate` accepted this set-up; an error here would still be reported,
+                    // not panicked on.
+                    loops.push(ClosedLoop::with_config(motor, *cfg, &opts)?);
+                    specs.push(RunSpec { speed_rad_s: w, ..spec.run });
+                }
+                let metrics = run_lockstep::<LANES>(&mut loops, &specs, pwm)?;
+                let rows = chunk
+                    .iter()
+                    .zip(metrics)
+                    .map(|(&(mode, comp, _, w), m)| {
+                        tick();
+                        let m = m.map_err(|e| match e {
+                            SimError::Diverged { t_s, what } => SimError::Diverged {
+                                t_s,
+                                what: format!("{} {} at {w} rad/s: {what}", mode.name(), comp.name()),
+                            },
+                            e => e,
+                        })?;
+                        Ok(SweepRow {
+                            mode,
+                            compensation: comp,
+                            speed_cmd_rad_s: w,
+                            vel_err_rms_rad_s: m.vel_err_rms_rad_s,
+                            vel_err_pp_rad_s: m.vel_err_pp_rad_s,
+                            lost_sync: m.lost_sync,
+                        })
+                    })
+                    .collect();
+                Ok(rows)
+            })
+            .collect();
+        // The first error in table order, whatever thread met it first.
+        let mut rows = Vec::with_capacity(runs.len());
+        for group in groups {
+            for row in group? {
+                rows.push(row?);
+            }
+        }
+        Ok(rows)
     }
 }
 
 /// The seed of run `index` of a batch with seed `base` (SplitMix64 of the two): deterministic
-/// and independent of the number of threads. Sweeps seed their lanes with it, and so do
+/// and independent of the number of threads. Sweeps seed their runs with it, and so do
 /// the identification runs of `stepdamp-identify`.
 pub fn derived_seed(base: u64, index: u64) -> u64 {
     let mut z = base.wrapping_add(index.wrapping_add(1).wrapping_mul(0x9E37_79B9_7F4A_7C15));

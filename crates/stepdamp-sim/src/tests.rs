@@ -19,14 +19,16 @@ fn readme_sweep() -> &'static (Vec<f64>, Vec<SweepRow>) {
             compensations: vec![Compensation::Off, Compensation::Patent],
             run: RunSpec::at(1.0),
             options: SimOptions::default(),
+            table: None,
         };
         let m = patent();
         (spec.speeds_rad_s.clone(), sweep(&m, &m, &spec, &|| {}).unwrap())
     })
 }
 
-fn lane<'a>(rows: &'a [SweepRow], mode: &str, comp: &str) -> Vec<&'a SweepRow> {
-    rows.iter().filter(|r| r.mode.name() == mode && r.compensation.name() == comp).collect()
+/// The rows of compensation `comp` in `mode`, by their names.
+fn runs_of<'a>(rows: &'a [SweepRow], mode: &str, comp: &str) -> Vec<&'a SweepRow> {
+    summary::runs_of(rows, mode.parse().unwrap(), comp.parse().unwrap())
 }
 
 /// Largest peak-to-peak error within ±10 % of `speed`.
@@ -40,7 +42,7 @@ fn peak_near(rows: &[&SweepRow], speed: f64) -> f64 {
 #[test]
 fn open_loop_resonances_sit_at_omega_n_over_k_nr() {
     let (_, rows) = readme_sweep();
-    let off = lane(rows, "open-loop", "off");
+    let off = runs_of(rows, "open-loop", "off");
     // Local maxima of the peak-to-peak error, largest three.
     let mut peaks: Vec<(f64, f64)> = (1..off.len() - 1)
         .filter(|&i| {
@@ -63,7 +65,7 @@ fn open_loop_resonances_sit_at_omega_n_over_k_nr() {
 #[test]
 fn open_loop_compensation_removes_the_three_resonances() {
     let (_, rows) = readme_sweep();
-    let (off, on) = (lane(rows, "open-loop", "off"), lane(rows, "open-loop", "patent"));
+    let (off, on) = (runs_of(rows, "open-loop", "off"), runs_of(rows, "open-loop", "patent"));
     let p = patent();
     for (k, need) in [(4, 20.0), (2, 20.0), (1, 10.0)] {
         let w = p.resonance_speed_rad_s(k);
@@ -76,7 +78,7 @@ fn open_loop_compensation_removes_the_three_resonances() {
 #[test]
 fn servo_compensation_cuts_median_rms_5x_and_worst_pp_4x() {
     let (_, rows) = readme_sweep();
-    let (off, on) = (lane(rows, "servo", "off"), lane(rows, "servo", "patent"));
+    let (off, on) = (runs_of(rows, "servo", "off"), runs_of(rows, "servo", "patent"));
     let median = |v: &[&SweepRow]| {
         let mut x: Vec<f64> = v.iter().map(|r| r.vel_err_rms_rad_s).collect();
         x.sort_by(f64::total_cmp);
@@ -101,6 +103,7 @@ fn halving_the_integration_step_changes_the_sweep_metric_by_under_one_percent() 
             compensations: vec![Compensation::Off],
             run: RunSpec::at(1.0),
             options: SimOptions { substeps, ..SimOptions::default() },
+            table: None,
         };
         sweep(&m, &m, &spec, &|| {}).unwrap()
     };
@@ -131,6 +134,7 @@ fn sweeps_are_identical_on_any_number_of_threads() {
         compensations: vec![Compensation::Off, Compensation::Patent],
         run: RunSpec { duration_s: 0.3, window_s: 0.1, ..RunSpec::at(1.0) },
         options: SimOptions { current_noise_a: 0.02, current_lsb_a: 0.005, ..SimOptions::default() },
+        table: None,
     };
     let on = |threads: usize| {
         rayon::ThreadPoolBuilder::new()
@@ -193,13 +197,14 @@ fn assert_lock_step_matches_runs_alone(m: &Profile) {
             load_torque_nm: 0.05,
             ..SimOptions::default()
         },
+        table: None,
     };
     let rows = sweep(m, m, &spec, &|| {}).unwrap();
     assert_eq!(rows.len(), 15);
     let mut i = 0;
     for (mode, comp) in spec.pairs() {
         for &w in &spec.speeds_rad_s {
-            let opts = SimOptions { seed: sweep::derived_seed(spec.options.seed, i as u64), ..spec.options };
+            let opts = SimOptions { seed: derived_seed(spec.options.seed, i as u64), ..spec.options };
             let mut lp = ClosedLoop::new(m, m, mode, comp, &opts).unwrap();
             let alone = run(&mut lp, &RunSpec { speed_rad_s: w, ..spec.run }, m.drive.pwm_hz, |_, _| {}).unwrap();
             let r = &rows[i];
@@ -226,6 +231,7 @@ fn a_diverging_sweep_fails_naming_the_run_and_the_time() {
         compensations: vec![Compensation::Off],
         run: RunSpec { duration_s: 0.3, window_s: 0.1, ..RunSpec::at(1.0) },
         options: SimOptions { load_torque_nm: 1e300, ..SimOptions::default() },
+        table: None,
     };
     let e = sweep(&m, &m, &spec, &|| {}).unwrap_err().to_string();
     assert!(e.starts_with("the simulation diverged at t = 0.05") && e.contains("(open-loop off at 2 rad/s: "), "{e}");
@@ -281,13 +287,14 @@ fn open_loop_sweep(motor: &Profile, controller: &Profile, comps: &[Compensation]
         compensations: comps.to_vec(),
         run: RunSpec::at(1.0),
         options: SimOptions { load_torque_nm: load, ..SimOptions::default() },
+        table: None,
     };
     sweep(motor, controller, &spec, &|| {}).unwrap()
 }
 
 fn reductions(rows: &[SweepRow], p: &Profile, comp: &str) -> Vec<f64> {
-    let off = lane(rows, "open-loop", "off");
-    let on = lane(rows, "open-loop", comp);
+    let off = runs_of(rows, "open-loop", "off");
+    let on = runs_of(rows, "open-loop", comp);
     [4, 2, 1]
         .iter()
         .map(|&k| peak_near(&off, p.resonance_speed_rad_s(k)) / peak_near(&on, p.resonance_speed_rad_s(k)))
@@ -305,7 +312,7 @@ fn estimated_angle_holds_under_a_load_of_30_percent_of_peak_torque() {
         assert!(est[i] >= 20.0, "k={k}: estimated only {:.1}x", est[i]);
         assert!(est[i] > pat[i], "k={k}: estimated {:.1}x does not beat the patent's {:.1}x", est[i], pat[i]);
     }
-    assert!(lane(&rows, "open-loop", "estimated").iter().all(|r| !r.lost_sync));
+    assert!(runs_of(&rows, "open-loop", "estimated").iter().all(|r| !r.lost_sync));
 }
 
 #[test]
@@ -361,8 +368,8 @@ fn estimated_angle_is_no_worse_than_the_patent_with_r_and_km_off_by_20_percent()
             .unwrap();
         for load in [0.0, 0.171] {
             let rows = open_loop_sweep(&p, &ctl, &[Compensation::Patent, Compensation::Estimated], load);
-            let pat = lane(&rows, "open-loop", "patent");
-            let est = lane(&rows, "open-loop", "estimated");
+            let pat = runs_of(&rows, "open-loop", "patent");
+            let est = runs_of(&rows, "open-loop", "estimated");
             assert_eq!(pat.len(), 60);
             for (a, b) in pat.iter().zip(&est) {
                 worst_ratio = worst_ratio.max(b.vel_err_pp_rad_s / a.vel_err_pp_rad_s);
@@ -480,6 +487,7 @@ fn a_sweep_runs_a_profile_with_every_real_drive_model() {
             compensations: vec![Compensation::Patent],
             run: RunSpec { duration_s: 0.4, window_s: 0.1, ..RunSpec::at(1.0) },
             options: SimOptions::default(),
+            table: None,
         };
         let rows = sweep(&m, &m, &spec, &|| {}).unwrap();
         assert_eq!(rows.len(), 4);

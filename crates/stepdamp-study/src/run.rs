@@ -136,6 +136,7 @@ impl Study {
                 load_torque_nm: v.load_torque_nm,
                 ..SimOptions::default()
             },
+            table: None,
         }
     }
 
@@ -147,6 +148,7 @@ impl Study {
             compensations: self.compensations(),
             run: RunSpec::at(1.0),
             options: SimOptions::default(),
+            table: None,
         };
         probe.pairs().into_iter().map(|(m, c)| (m.name(), c.name())).collect()
     }

@@ -29,7 +29,8 @@ use serde::{Deserialize, Serialize};
 use std::path::Path;
 use stepdamp_core::Mode;
 use stepdamp_core::limits::Num;
-use stepdamp_sim::{Compensation, Profile};
+use stepdamp_sim::options::MAX_SUBSTEPS;
+use stepdamp_sim::{Compensation, Profile, check_substeps};
 
 /// A distribution of one parameter. Uniform draws; `scale` multiplies the nominal value,
 /// `add` adds to it, `uniform` replaces it.
@@ -354,8 +355,8 @@ impl Study {
         if !(s.duration_s.is_finite() && (0.2..=100.0).contains(&s.duration_s)) {
             return Err(bad(format!("sweep.duration_s = {}: must be in 0.2..=100 s", Num(s.duration_s))));
         }
-        if !(1..=1000).contains(&s.substeps) {
-            return Err(bad(format!("sweep.substeps = {}: must be in 1..=1000", s.substeps)));
+        if check_substeps(i64::from(s.substeps)).is_err() {
+            return Err(bad(format!("sweep.substeps = {}: must be in 1..={MAX_SUBSTEPS}", s.substeps)));
         }
         if !(s.current_noise_a.is_finite() && s.current_noise_a >= 0.0) {
             return Err(bad(format!("sweep.current_noise_a = {}: must be ≥ 0 A", Num(s.current_noise_a))));
