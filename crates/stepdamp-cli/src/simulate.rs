@@ -3,7 +3,7 @@
 use crate::Global;
 use crate::common::{ChoiceList, load_motor, parse_compensations, parse_modes, sim_error_with_flag};
 use anyhow::{Context, Result, anyhow, bail};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use stepdamp_core::Mode;
 use stepdamp_sim::runlog::{FromRecord, LogRow};
 use stepdamp_sim::{
@@ -66,25 +66,8 @@ pub fn run(a: SimulateArgs, _g: &Global) -> Result<()> {
         }
         None => motor.clone(),
     };
-    let ([mode], [comp]) = (a.mode.items.as_slice(), a.compensation.items.as_slice()) else {
-        bail!("simulate runs one mode and one compensation (got --mode {} --compensation {})", a.mode, a.compensation);
-    };
-    check_mode_compensation(*mode, *comp).map_err(|e| match comp {
-        stepdamp_sim::Compensation::Estimated => {
-            anyhow!("--mode servo --compensation estimated: {ESTIMATED_IS_OPEN_LOOP_ONLY}")
-        }
-        _ => anyhow!("--mode {} --compensation {}: {e}", a.mode, a.compensation),
-    })?;
-    if *comp == stepdamp_sim::Compensation::Table {
-        bail!("--compensation table replays a table file: use `stepdamp sweep --compensation table --table FILE`");
-    }
-    if !(a.duration.is_finite() && a.duration > 0.0 && a.duration <= 1000.0) {
-        bail!("--duration {}: must be in (0, 1000] s", a.duration);
-    }
-    if !(a.ramp.is_finite() && a.ramp >= 0.0 && a.dwell.is_finite() && a.dwell >= 0.0 && a.dwell + a.ramp < a.duration)
-    {
-        bail!("--dwell {} + --ramp {}: must be ≥ 0 and shorter than --duration {}", a.dwell, a.ramp, a.duration);
-    }
+    let (mode, comp) = checked_choice(&a)?;
+    check_times(&a)?;
     let spec = RunSpec { dwell_s: a.dwell, ramp_s: a.ramp, ..RunSpec::for_duration(a.speed, a.duration) };
     let pwm = motor.drive.pwm_hz;
     let nr = motor.motor.pole_pairs;
@@ -102,7 +85,7 @@ pub fn run(a: SimulateArgs, _g: &Global) -> Result<()> {
         load_torque_nm: a.load_torque,
         ..SimOptions::default()
     };
-    let mut lp = ClosedLoop::new(&motor, &controller, *mode, *comp, &opts).map_err(flag_error)?;
+    let mut lp = ClosedLoop::new(&motor, &controller, mode, comp, &opts).map_err(flag_error)?;
     // The log is streamed to a temporary file next to its target and moved into place
     // when complete (a device, FIFO or `-` is written straight through), so an error or
     // an interruption leaves nothing half-written.
@@ -125,16 +108,7 @@ pub fn run(a: SimulateArgs, _g: &Global) -> Result<()> {
     })?;
     let written = match (log, &a.log) {
         (Some(w), Some(path)) => {
-            let out = match write_error.map(csv::Error::into_kind) {
-                Some(csv::ErrorKind::Io(e)) => Err(e),
-                Some(other) => Err(std::io::Error::other(format!("{other:?}"))),
-                None => w.into_inner().map_err(|e| e.into_error()),
-            };
-            let out = out.map_err(|e| match e.kind() {
-                std::io::ErrorKind::BrokenPipe => anyhow::Error::new(crate::common::StdoutClosed),
-                _ => anyhow!("{}: cannot write: {e}", path.display()),
-            })?;
-            out.commit()?;
+            finish_log(w, write_error, path)?;
             Some(path)
         }
         _ => None,
@@ -153,5 +127,51 @@ pub fn run(a: SimulateArgs, _g: &Global) -> Result<()> {
     if let Some(path) = written {
         outln!("wrote {} ({rows} rows)", path.display());
     }
+    Ok(())
+}
+
+/// The one mode and compensation asked for, checked to go together (and not `table`).
+fn checked_choice(a: &SimulateArgs) -> Result<(Mode, Compensation)> {
+    let (&[mode], &[comp]) = (a.mode.items.as_slice(), a.compensation.items.as_slice()) else {
+        bail!("simulate runs one mode and one compensation (got --mode {} --compensation {})", a.mode, a.compensation);
+    };
+    check_mode_compensation(mode, comp).map_err(|e| match comp {
+        stepdamp_sim::Compensation::Estimated => {
+            anyhow!("--mode servo --compensation estimated: {ESTIMATED_IS_OPEN_LOOP_ONLY}")
+        }
+        _ => anyhow!("--mode {} --compensation {}: {e}", a.mode, a.compensation),
+    })?;
+    if comp == stepdamp_sim::Compensation::Table {
+        bail!("--compensation table replays a table file: use `stepdamp sweep --compensation table --table FILE`");
+    }
+    Ok((mode, comp))
+}
+
+/// Checks `--duration`, `--dwell` and `--ramp` (s): a duration in (0, 1000] s, dwell and ramp
+/// ≥ 0 and together shorter than it.
+fn check_times(a: &SimulateArgs) -> Result<()> {
+    if !(a.duration.is_finite() && a.duration > 0.0 && a.duration <= 1000.0) {
+        bail!("--duration {}: must be in (0, 1000] s", a.duration);
+    }
+    if !(a.ramp.is_finite() && a.ramp >= 0.0 && a.dwell.is_finite() && a.dwell >= 0.0 && a.dwell + a.ramp < a.duration)
+    {
+        bail!("--dwell {} + --ramp {}: must be ≥ 0 and shorter than --duration {}", a.dwell, a.ramp, a.duration);
+    }
+    Ok(())
+}
+
+/// Completes the log written to `path`: its first write error, if any, else the flush and
+/// the move into place of the temporary file.
+fn finish_log(w: csv::Writer<stepdamp_out::Output>, write_error: Option<csv::Error>, path: &Path) -> Result<()> {
+    let out = match write_error.map(csv::Error::into_kind) {
+        Some(csv::ErrorKind::Io(e)) => Err(e),
+        Some(other) => Err(std::io::Error::other(format!("{other:?}"))),
+        None => w.into_inner().map_err(|e| e.into_error()),
+    };
+    let out = out.map_err(|e| match e.kind() {
+        std::io::ErrorKind::BrokenPipe => anyhow::Error::new(crate::common::StdoutClosed),
+        _ => anyhow!("{}: cannot write: {e}", path.display()),
+    })?;
+    out.commit()?;
     Ok(())
 }

@@ -97,7 +97,22 @@ pub fn solve(d: &Design) -> Result<Solution, LsqError> {
     if d.y.iter().any(|v| !v.is_finite()) {
         return Err(LsqError::NonFinite("an observation"));
     }
-    // Column scales: RMS of each column.
+    let scale = column_scales(d)?;
+    let Scaled { beta_s, inv, condition } = solve_scaled(d, &scale)?;
+    let beta: Vec<f64> = (0..p).map(|j| beta_s[j] / scale[j]).collect();
+    let (residual, rss) = residuals(d, &beta);
+    if !rss.is_finite() || beta.iter().any(|b| !b.is_finite()) {
+        return Err(LsqError::NonFinite(if rss.is_finite() { "a coefficient" } else { "the residual sum of squares" }));
+    }
+    let sigma2 = rss / (n - p) as f64;
+    let cov = covariance(d, &scale, &residual, &inv, sigma2)?;
+    let inflation = (0..p).map(|j| inv[(j, j)] * n as f64).collect();
+    Ok(Solution { beta, cov, residual_rms: (rss / n as f64).sqrt(), residual, condition, inflation })
+}
+
+/// The RMS of each column of `d`; an error when one is zero or not finite.
+fn column_scales(d: &Design) -> Result<Vec<f64>, LsqError> {
+    let (n, p) = (d.rows(), d.p);
     let mut scale = vec![0.0; p];
     for row in d.x.chunks_exact(p) {
         for (s, v) in scale.iter_mut().zip(row) {
@@ -110,6 +125,23 @@ pub fn solve(d: &Design) -> Result<Solution, LsqError> {
     if scale.iter().any(|&s| !(s > 0.0 && s.is_finite())) {
         return Err(LsqError::Singular(f64::INFINITY));
     }
+    Ok(scale)
+}
+
+/// The solution in the units of the column-scaled `X` (each column divided by its scale).
+struct Scaled {
+    /// `β` of the scaled columns.
+    beta_s: DVector<f64>,
+    /// `(XsᵀXs)⁻¹`.
+    inv: DMatrix<f64>,
+    /// Condition number of `Xs`.
+    condition: f64,
+}
+
+/// QR of the scaled `X`, then the SVD of `R`: `β_s = V Σ⁻¹ Uᵀ Qᵀy` and
+/// `(XsᵀXs)⁻¹ = V Σ⁻² Vᵀ`; an error when the condition number reaches 1e10.
+fn solve_scaled(d: &Design, scale: &[f64]) -> Result<Scaled, LsqError> {
+    let (n, p) = (d.rows(), d.p);
     let xs = DMatrix::from_fn(n, p, |i, j| d.x[i * p + j] / scale[j]);
     let qr = xs.qr();
     let r = qr.r();
@@ -125,7 +157,6 @@ pub fn solve(d: &Design) -> Result<Solution, LsqError> {
         return Err(LsqError::Singular(condition));
     }
     let (u, vt) = (svd.u.as_ref().expect("computed"), svd.v_t.as_ref().expect("computed"));
-    // β_scaled = V Σ⁻¹ Uᵀ Qᵀy; (XsᵀXs)⁻¹ = V Σ⁻² Vᵀ.
     let uty = u.transpose() * &qty;
     let mut beta_s = DVector::zeros(p);
     let mut inv = DMatrix::zeros(p, p);
@@ -134,19 +165,56 @@ pub fn solve(d: &Design) -> Result<Solution, LsqError> {
         beta_s += &vk * (uty[k] / sv[k]);
         inv += &vk * vk.transpose() / (sv[k] * sv[k]);
     }
-    let beta: Vec<f64> = (0..p).map(|j| beta_s[j] / scale[j]).collect();
-    let mut residual = Vec::with_capacity(n);
+    Ok(Scaled { beta_s, inv, condition })
+}
+
+/// The residuals `y − Xβ` and their sum of squares.
+fn residuals(d: &Design, beta: &[f64]) -> (Vec<f64>, f64) {
+    let mut residual = Vec::with_capacity(d.rows());
     let mut rss = 0.0;
-    for (row, &y) in d.x.chunks_exact(p).zip(&d.y) {
-        let e = y - row.iter().zip(&beta).map(|(a, b)| a * b).sum::<f64>();
+    for (row, &y) in d.x.chunks_exact(d.p).zip(&d.y) {
+        let e = y - row.iter().zip(beta).map(|(a, b)| a * b).sum::<f64>();
         rss += e * e;
         residual.push(e);
     }
-    if !rss.is_finite() || beta.iter().any(|b| !b.is_finite()) {
-        return Err(LsqError::NonFinite(if rss.is_finite() { "a coefficient" } else { "the residual sum of squares" }));
+    (residual, rss)
+}
+
+/// The covariance of `β` (see the module documentation): the classical `σ²(XsᵀXs)⁻¹`, or,
+/// with enough blocks, the robust one raised to the classical variance where it is smaller,
+/// then unscaled to the units of `β`.
+fn covariance(
+    d: &Design,
+    scale: &[f64],
+    residual: &[f64],
+    inv: &DMatrix<f64>,
+    sigma2: f64,
+) -> Result<DMatrix<f64>, LsqError> {
+    let p = d.p;
+    let (meat, blocks) = block_scores(d, scale, residual);
+    let classical = inv * sigma2;
+    let mut cov_s = if blocks >= 2 * p.max(2) {
+        let robust = inv * meat * inv * (blocks as f64 / (blocks - 1) as f64);
+        at_least_classical(robust, &classical)
+    } else {
+        classical
+    };
+    // Unscale.
+    for j in 0..p {
+        for k in 0..p {
+            cov_s[(j, k)] /= scale[j] * scale[k];
+        }
     }
-    let sigma2 = rss / (n - p) as f64;
-    // Sandwich in scaled units: scores per block.
+    if cov_s.iter().any(|c| !c.is_finite()) {
+        return Err(LsqError::NonFinite("the covariance"));
+    }
+    Ok(cov_s)
+}
+
+/// The sandwich's meat in scaled units, `Σ_b s_b s_bᵀ` with `s_b = Σ_{i∈b} x_i e_i` over
+/// runs of equal block labels, and the number of blocks.
+fn block_scores(d: &Design, scale: &[f64], residual: &[f64]) -> (DMatrix<f64>, usize) {
+    let p = d.p;
     let mut meat = DMatrix::<f64>::zeros(p, p);
     let mut blocks = 0usize;
     let mut s = DVector::<f64>::zeros(p);
@@ -166,35 +234,23 @@ pub fn solve(d: &Design) -> Result<Solution, LsqError> {
     }
     meat += &s * s.transpose();
     blocks += 1;
-    let classical = &inv * sigma2;
-    let mut cov_s = if blocks >= 2 * p.max(2) {
-        let robust = &inv * meat * &inv * (blocks as f64 / (blocks - 1) as f64);
-        // Per element the larger variance: scale the robust matrix where it is smaller.
-        let mut c = robust;
-        for j in 0..p {
-            if c[(j, j)] < classical[(j, j)] {
-                let f = (classical[(j, j)] / c[(j, j)].max(f64::MIN_POSITIVE)).sqrt();
-                for k in 0..p {
-                    c[(j, k)] *= f;
-                    c[(k, j)] *= f;
-                }
+    (meat, blocks)
+}
+
+/// `robust` with each variance raised to at least the classical one: row and column `j`
+/// scaled by `√(classical_jj / robust_jj)` where the robust variance is smaller.
+fn at_least_classical(mut c: DMatrix<f64>, classical: &DMatrix<f64>) -> DMatrix<f64> {
+    let p = c.nrows();
+    for j in 0..p {
+        if c[(j, j)] < classical[(j, j)] {
+            let f = (classical[(j, j)] / c[(j, j)].max(f64::MIN_POSITIVE)).sqrt();
+            for k in 0..p {
+                c[(j, k)] *= f;
+                c[(k, j)] *= f;
             }
         }
-        c
-    } else {
-        classical
-    };
-    // Unscale.
-    for j in 0..p {
-        for k in 0..p {
-            cov_s[(j, k)] /= scale[j] * scale[k];
-        }
     }
-    if cov_s.iter().any(|c| !c.is_finite()) {
-        return Err(LsqError::NonFinite("the covariance"));
-    }
-    let inflation = (0..p).map(|j| inv[(j, j)] * n as f64).collect();
-    Ok(Solution { beta, cov: cov_s, residual_rms: (rss / n as f64).sqrt(), residual, condition, inflation })
+    c
 }
 
 #[cfg(test)]

@@ -219,6 +219,44 @@ pub fn assumed_detent(p: &Profile) -> Vec<DetentTerm> {
 
 /// Makes the plan for a base profile.
 pub fn plan(base: &Profile, o: &PlanOptions) -> Result<Plan, PlanError> {
+    let kmax = check_options(o)?;
+    let servo = Servo::for_profile(base, o);
+    let (nr, j, fb) = (f64::from(base.motor.pole_pairs), base.motor.inertia_kg_m2, servo.fb);
+    let mut notes = Vec::new();
+    if fb > base.drive.current_loop_bandwidth_hz / 5.0 {
+        notes.push(format!(
+            "the servo bandwidth {fb:.0} Hz is more than a fifth of the current loop's {:.0} Hz: the loop may ring; a stiffer load coupling or a smaller stiffness margin helps",
+            base.drive.current_loop_bandwidth_hz
+        ));
+    }
+    let speeds = Speeds::for_servo(servo.wb, f64::from(base.encoder.counts_per_rev), kmax, nr);
+    if speeds.f_k(speeds.w_hi) > fb {
+        notes.push(format!(
+            "harmonic {kmax} runs at {:.0} Hz at the fast speed, above the servo bandwidth {fb:.0} Hz: the loop does not follow it and the fit relies on J·dω/dt (J = {j:.3e} kg·m² must be right); a finer encoder allows slower runs",
+            speeds.f_k(speeds.w_hi)
+        ));
+    }
+    let runs = planned_runs(&speeds, fb, o);
+    let profile = base
+        .edited(&base.name, |p| {
+            p.servo.bandwidth_hz = fb;
+            p.servo.velocity_filter_hz = fb;
+        })
+        .map_err(|e| PlanError::Options(format!("the planned servo settings: {e}")))?;
+    Ok(Plan {
+        profile,
+        servo_bandwidth_hz: fb,
+        velocity_filter_hz: fb,
+        detent_stiffness_nm_per_rad: servo.s,
+        detent_from_profile: servo.from_profile,
+        servo_reason: servo.reason,
+        runs,
+        notes,
+    })
+}
+
+/// Checks the options' ranges; returns the highest order.
+fn check_options(o: &PlanOptions) -> Result<u16, PlanError> {
     let bad = |m: String| Err(PlanError::Options(m));
     if !(o.stiffness_margin.is_finite() && o.stiffness_margin >= 1.0) {
         return bad(format!("stiffness margin {}: must be ≥ 1", o.stiffness_margin));
@@ -235,39 +273,79 @@ pub fn plan(base: &Profile, o: &PlanOptions) -> Result<Plan, PlanError> {
     if !(o.current_noise_a.is_finite() && o.current_noise_a >= 0.0) {
         return bad(format!("current noise {} A: must be ≥ 0", o.current_noise_a));
     }
-    let Some(&kmax) = o.orders.iter().max() else { return bad("no harmonic orders".into()) };
-    let nr = f64::from(base.motor.pole_pairs);
-    let cpr = f64::from(base.encoder.counts_per_rev);
-    let j = base.motor.inertia_kg_m2;
-    let from_profile = !base.motor.detent.is_empty();
-    let detent = if from_profile { base.motor.detent.clone() } else { assumed_detent(base) };
-    let s: f64 = detent.iter().map(|h| f64::from(h.order) * nr * h.amplitude_nm).sum();
-    let wb_stiff = (o.stiffness_margin * s / j).sqrt();
-    let wb = wb_stiff.max(TAU * o.min_servo_bandwidth_hz);
-    let fb = wb / TAU;
-    let mut notes = Vec::new();
-    let servo_reason = format!(
-        "stiffness J·ω_b² = {:.2} N·m/rad ≥ {:.1} × the detent's largest negative stiffness Σk·Nr·A_k = {:.2} N·m/rad ({}), so the rotor cannot snap between detent wells; velocity filter at the bandwidth (less encoder noise in the torque than a higher corner, more phase margin than a lower one)",
-        j * wb * wb,
-        (j * wb * wb / s.max(f64::MIN_POSITIVE)).min(1e6),
-        s,
-        if from_profile { "detent of the profile" } else { "no detent in the profile: typical values assumed" },
-    );
-    if fb > base.drive.current_loop_bandwidth_hz / 5.0 {
-        notes.push(format!(
-            "the servo bandwidth {fb:.0} Hz is more than a fifth of the current loop's {:.0} Hz: the loop may ring; a stiffer load coupling or a smaller stiffness margin helps",
-            base.drive.current_loop_bandwidth_hz
-        ));
+    match o.orders.iter().max() {
+        Some(&kmax) => Ok(kmax),
+        None => bad("no harmonic orders".into()),
     }
-    let w_lo = wb * TAU / cpr;
-    let w_hi = 2.0 * w_lo;
-    let f_k = |w: f64| f64::from(kmax) * nr * w / TAU;
-    if f_k(w_hi) > fb {
-        notes.push(format!(
-            "harmonic {kmax} runs at {:.0} Hz at the fast speed, above the servo bandwidth {fb:.0} Hz: the loop does not follow it and the fit relies on J·dω/dt (J = {j:.3e} kg·m² must be right); a finer encoder allows slower runs",
-            f_k(w_hi)
-        ));
+}
+
+/// The servo settings of the plan (rule 1 of the module documentation).
+struct Servo {
+    /// The detent stiffness bound `S = Σ k·Nr·A_k`, N·m/rad.
+    s: f64,
+    /// Whether `S` came from the profile's detent (else [`assumed_detent`]).
+    from_profile: bool,
+    /// Position-loop bandwidth, rad/s.
+    wb: f64,
+    /// The same in Hz (and the velocity filter's corner).
+    fb: f64,
+    /// Why these settings.
+    reason: String,
+}
+
+impl Servo {
+    /// The bandwidth whose stiffness `J·ω_b²` is the margin times `S`, at least the
+    /// options' lowest bandwidth.
+    fn for_profile(base: &Profile, o: &PlanOptions) -> Self {
+        let nr = f64::from(base.motor.pole_pairs);
+        let j = base.motor.inertia_kg_m2;
+        let from_profile = !base.motor.detent.is_empty();
+        let detent = if from_profile { base.motor.detent.clone() } else { assumed_detent(base) };
+        let s: f64 = detent.iter().map(|h| f64::from(h.order) * nr * h.amplitude_nm).sum();
+        let wb_stiff = (o.stiffness_margin * s / j).sqrt();
+        let wb = wb_stiff.max(TAU * o.min_servo_bandwidth_hz);
+        let fb = wb / TAU;
+        let reason = format!(
+            "stiffness J·ω_b² = {:.2} N·m/rad ≥ {:.1} × the detent's largest negative stiffness Σk·Nr·A_k = {:.2} N·m/rad ({}), so the rotor cannot snap between detent wells; velocity filter at the bandwidth (less encoder noise in the torque than a higher corner, more phase margin than a lower one)",
+            j * wb * wb,
+            (j * wb * wb / s.max(f64::MIN_POSITIVE)).min(1e6),
+            s,
+            if from_profile { "detent of the profile" } else { "no detent in the profile: typical values assumed" },
+        );
+        Servo { s, from_profile, wb, fb, reason }
     }
+}
+
+/// The two speeds of the plan (rules 2 and 3 of the module documentation).
+struct Speeds {
+    /// Slow speed: a count rate equal to the loop bandwidth, rad/s.
+    w_lo: f64,
+    /// Fast speed: twice the slow one, rad/s.
+    w_hi: f64,
+    /// Encoder counts per revolution.
+    cpr: f64,
+    /// Highest harmonic order.
+    kmax: u16,
+    /// Rotor pole pairs.
+    nr: f64,
+}
+
+impl Speeds {
+    fn for_servo(wb: f64, cpr: f64, kmax: u16, nr: f64) -> Self {
+        let w_lo = wb * TAU / cpr;
+        Speeds { w_lo, w_hi: 2.0 * w_lo, cpr, kmax, nr }
+    }
+
+    /// Frequency of the highest harmonic at speed `w` rad/s, Hz.
+    fn f_k(&self, w: f64) -> f64 {
+        f64::from(self.kmax) * self.nr * w / TAU
+    }
+}
+
+/// The four runs (rules 4 and 5 of the module documentation): slow then fast, each forward
+/// then reverse, with their reasons; `fb` is the servo bandwidth, Hz.
+fn planned_runs(sp: &Speeds, fb: f64, o: &PlanOptions) -> Vec<PlannedRun> {
+    let (kmax, nr) = (sp.kmax, sp.nr);
     let dwell = 0.05;
     let ramp = 0.1;
     let steady = |w: f64| (o.electrical_periods * TAU / (nr * w)).max(o.min_steady_s);
@@ -275,20 +353,20 @@ pub fn plan(base: &Profile, o: &PlanOptions) -> Result<Plan, PlanError> {
     let mut i = 0;
     for (w, why) in [
         (
-            w_lo,
+            sp.w_lo,
             format!(
                 "slow: the encoder counts {:.0} times/s = the servo bandwidth in rad/s, so quantisation jitter cannot stall the rotor within a count; harmonic {kmax} at {:.1} Hz ({:.2} × bandwidth)",
-                cpr * w_lo / TAU,
-                f_k(w_lo),
-                f_k(w_lo) / fb
+                sp.cpr * sp.w_lo / TAU,
+                sp.f_k(sp.w_lo),
+                sp.f_k(sp.w_lo) / fb
             ),
         ),
         (
-            w_hi,
+            sp.w_hi,
             format!(
                 "fast: twice the slow speed, so D separates from Fs; harmonic {kmax} at {:.1} Hz ({:.2} × bandwidth)",
-                f_k(w_hi),
-                f_k(w_hi) / fb
+                sp.f_k(sp.w_hi),
+                sp.f_k(sp.w_hi) / fb
             ),
         ),
     ] {
@@ -313,22 +391,7 @@ pub fn plan(base: &Profile, o: &PlanOptions) -> Result<Plan, PlanError> {
             });
         }
     }
-    let profile = base
-        .edited(&base.name, |p| {
-            p.servo.bandwidth_hz = fb;
-            p.servo.velocity_filter_hz = fb;
-        })
-        .map_err(|e| PlanError::Options(format!("the planned servo settings: {e}")))?;
-    Ok(Plan {
-        profile,
-        servo_bandwidth_hz: fb,
-        velocity_filter_hz: fb,
-        detent_stiffness_nm_per_rad: s,
-        detent_from_profile: from_profile,
-        servo_reason,
-        runs,
-        notes,
-    })
+    runs
 }
 
 #[cfg(feature = "simulate")]

@@ -32,6 +32,7 @@
 use crate::fit::wrap_pi;
 use crate::log::{CsvFailure, MAX_COLUMNS, SHOWN_CHARS, bounded_csv, column_list, header_names};
 use realfft::RealFftPlanner;
+use realfft::num_complex::Complex;
 use std::f64::consts::{FRAC_PI_2, TAU};
 use std::path::Path;
 use stepdamp_out::input::printable;
@@ -293,96 +294,23 @@ pub fn analyse(
     source: &str,
 ) -> Result<StaticCurve, StaticError> {
     let span_err = |reason: String| StaticError::Span { path: source.to_string(), reason };
-    let n = points.len();
-    if n < 8 {
-        return Err(span_err(format!("{n} points: at least 8 are needed")));
-    }
-    if pole_pairs == 0 || max_order == 0 {
-        return Err(span_err("pole pairs and the highest order must be ≥ 1".into()));
-    }
-    if let Some((i, &(th, tq))) =
-        points.iter().enumerate().find(|(_, p)| !(p.0.is_finite() && p.1.abs() <= MAX_TORQUE_NM))
-    {
-        return Err(span_err(format!(
-            "point {} (θ = {th} rad): torque {tq} N·m is not a finite value within ±{MAX_TORQUE_NM:e} N·m (is it in N·m?)",
-            i + 1
-        )));
-    }
-    for w in points.windows(2) {
-        if w[1].0.partial_cmp(&w[0].0) != Some(std::cmp::Ordering::Greater) {
-            return Err(span_err(format!("angles must increase ({} then {})", w[0].0, w[1].0)));
-        }
-    }
-    let te = TAU / f64::from(pole_pairs);
-    let (th0, thn) = (points[0].0, points[n - 1].0);
-    let inclusive = (thn - th0) / te;
-    if inclusive > MAX_PERIODS {
-        return Err(span_err(format!(
-            "the table spans {inclusive:.4e} electrical periods (2π/{pole_pairs} rad each); at most {MAX_PERIODS} are \
-             analysed (is theta_rad the mechanical angle in radians?)"
-        )));
-    }
-    // One mean step, in periods. The table ends either at θ_first + P·2π/Nr (the last point
-    // repeats the first a span on) or one step before it; within half a step either way.
-    let step = inclusive / (n - 1) as f64;
-    let whole = |x: f64| x.round() >= 1.0 && (x - x.round()).abs() < 0.5 * step;
-    let (periods, pts) = if whole(inclusive) {
-        (inclusive.round(), &points[..n - 1])
-    } else if whole(inclusive + step) {
-        ((inclusive + step).round(), points)
-    } else {
-        return Err(span_err(format!(
-            "the table spans {inclusive:.3} electrical periods (2π/{pole_pairs} rad each): it must span a whole number, \
-             ending at or one step before θ_first + P·2π/{pole_pairs} (within half a step)"
-        )));
-    };
+    check_points(points, pole_pairs, max_order).map_err(span_err)?;
+    let OneSpan { periods, pts } = whole_periods(points, pole_pairs).map_err(span_err)?;
     let p = periods as usize;
-    let span = periods * te;
-    // The grid has as many points as the table: a uniform table is analysed exactly, a
-    // non-uniform one is resampled without inventing resolution it does not have.
-    let m = pts.len();
-    if m < 2 * p + 1 {
-        return Err(span_err(format!(
-            "{m} points over {p} electrical periods ({:.2} per period): at least 3 per period are needed to resolve \
-             order 1 (is theta_rad the mechanical angle in radians?)",
-            m as f64 / periods
-        )));
-    }
-    // Periodic linear interpolation on a uniform grid over [th0, th0 + span).
+    let th0 = points[0].0;
+    let span = periods * (TAU / f64::from(pole_pairs));
     let sgn = match sign {
         TorqueSign::OnRotor => -1.0,
         TorqueSign::Holding => 1.0,
     };
-    let mut grid = Vec::with_capacity(m);
-    let mut j = 0usize;
-    for i in 0..m {
-        let x = th0 + span * i as f64 / m as f64;
-        while j + 1 < pts.len() && pts[j + 1].0 <= x {
-            j += 1;
-        }
-        let (xa, ya) = pts[j];
-        let (xb, yb) = if j + 1 < pts.len() { pts[j + 1] } else { (pts[0].0 + span, pts[0].1) };
-        let f = if xb > xa { (x - xa) / (xb - xa) } else { 0.0 };
-        grid.push(sgn * (ya + f * (yb - ya)));
-    }
+    let mut grid = uniform_grid(pts, th0, span, sgn);
+    let m = grid.len();
     let fft = RealFftPlanner::<f64>::new().plan_fft_forward(m);
     let mut spec = fft.make_output_vec();
     fft.process(&mut grid, &mut spec).map_err(|e| span_err(format!("FFT: {e}")))?;
+    let harmonics = harmonics_of(&spec, m, p, f64::from(pole_pairs), max_order, th0);
+    let harmonic_power = harmonics.iter().fold(0.0, |sum, h| sum + h.amplitude_nm * h.amplitude_nm / 2.0);
     let mf = m as f64;
-    let nr = f64::from(pole_pairs);
-    let mut harmonics = Vec::new();
-    let mut harmonic_power = 0.0;
-    for k in 1..=max_order {
-        let bin = usize::from(k) * p;
-        if bin >= m / 2 {
-            break;
-        }
-        let x = spec[bin];
-        let amp = 2.0 * x.norm() / mf;
-        harmonic_power += amp * amp / 2.0;
-        let phase = wrap_pi(x.im.atan2(x.re) + FRAC_PI_2 - f64::from(k) * nr * th0);
-        harmonics.push(StaticHarmonic { order: k, amplitude_nm: amp, phase_rad: phase });
-    }
     let mean = spec[0].re / mf * sgn;
     // Total power (Parseval) minus mean and harmonics.
     let total: f64 = spec
@@ -400,6 +328,120 @@ pub fn analyse(
         rest_rms_nm: (total - harmonic_power).max(0.0).sqrt(),
         electrical_periods: p as u32,
     })
+}
+
+/// Checks what [`analyse`] needs of its arguments before looking at the span: at least 8
+/// points, pole pairs and highest order ≥ 1, finite angles, torques within
+/// ±[`MAX_TORQUE_NM`], angles increasing. The error is the reason.
+fn check_points(points: &[(f64, f64)], pole_pairs: u16, max_order: u16) -> Result<(), String> {
+    let n = points.len();
+    if n < 8 {
+        return Err(format!("{n} points: at least 8 are needed"));
+    }
+    if pole_pairs == 0 || max_order == 0 {
+        return Err("pole pairs and the highest order must be ≥ 1".into());
+    }
+    if let Some((i, &(th, tq))) =
+        points.iter().enumerate().find(|(_, p)| !(p.0.is_finite() && p.1.abs() <= MAX_TORQUE_NM))
+    {
+        return Err(format!(
+            "point {} (θ = {th} rad): torque {tq} N·m is not a finite value within ±{MAX_TORQUE_NM:e} N·m (is it in N·m?)",
+            i + 1
+        ));
+    }
+    for w in points.windows(2) {
+        if w[1].0.partial_cmp(&w[0].0) != Some(std::cmp::Ordering::Greater) {
+            return Err(format!("angles must increase ({} then {})", w[0].0, w[1].0));
+        }
+    }
+    Ok(())
+}
+
+/// A table cut to one span of whole electrical periods.
+struct OneSpan<'a> {
+    /// The number of periods `P` (a whole number).
+    periods: f64,
+    /// The points of the span, the last one before `θ_first + P·2π/Nr`.
+    pts: &'a [(f64, f64)],
+}
+
+/// The whole number of electrical periods `P` the table spans and the points of one span
+/// (without the last point when it repeats the first a span on), checked against
+/// [`MAX_PERIODS`] and for at least 3 points per period. The error is the reason.
+fn whole_periods(points: &[(f64, f64)], pole_pairs: u16) -> Result<OneSpan<'_>, String> {
+    let n = points.len();
+    let te = TAU / f64::from(pole_pairs);
+    let (th0, thn) = (points[0].0, points[n - 1].0);
+    let inclusive = (thn - th0) / te;
+    if inclusive > MAX_PERIODS {
+        return Err(format!(
+            "the table spans {inclusive:.4e} electrical periods (2π/{pole_pairs} rad each); at most {MAX_PERIODS} are \
+             analysed (is theta_rad the mechanical angle in radians?)"
+        ));
+    }
+    // One mean step, in periods. The table ends either at θ_first + P·2π/Nr (the last point
+    // repeats the first a span on) or one step before it; within half a step either way.
+    let step = inclusive / (n - 1) as f64;
+    let whole = |x: f64| x.round() >= 1.0 && (x - x.round()).abs() < 0.5 * step;
+    let (periods, pts) = if whole(inclusive) {
+        (inclusive.round(), &points[..n - 1])
+    } else if whole(inclusive + step) {
+        ((inclusive + step).round(), points)
+    } else {
+        return Err(format!(
+            "the table spans {inclusive:.3} electrical periods (2π/{pole_pairs} rad each): it must span a whole number, \
+             ending at or one step before θ_first + P·2π/{pole_pairs} (within half a step)"
+        ));
+    };
+    // The grid has as many points as the table: a uniform table is analysed exactly, a
+    // non-uniform one is resampled without inventing resolution it does not have.
+    let (p, m) = (periods as usize, pts.len());
+    if m < 2 * p + 1 {
+        return Err(format!(
+            "{m} points over {p} electrical periods ({:.2} per period): at least 3 per period are needed to resolve \
+             order 1 (is theta_rad the mechanical angle in radians?)",
+            m as f64 / periods
+        ));
+    }
+    Ok(OneSpan { periods, pts })
+}
+
+/// `sgn ×` the torque of `pts` linearly interpolated (periodically, over `span` rad) on a
+/// uniform grid of as many points over `[th0, th0 + span)`.
+fn uniform_grid(pts: &[(f64, f64)], th0: f64, span: f64, sgn: f64) -> Vec<f64> {
+    let m = pts.len();
+    let mut grid = Vec::with_capacity(m);
+    let mut j = 0usize;
+    for i in 0..m {
+        let x = th0 + span * i as f64 / m as f64;
+        while j + 1 < pts.len() && pts[j + 1].0 <= x {
+            j += 1;
+        }
+        let (xa, ya) = pts[j];
+        let (xb, yb) = if j + 1 < pts.len() { pts[j + 1] } else { (pts[0].0 + span, pts[0].1) };
+        let f = if xb > xa { (x - xa) / (xb - xa) } else { 0.0 };
+        grid.push(sgn * (ya + f * (yb - ya)));
+    }
+    grid
+}
+
+/// The harmonics `1..=max_order` below Nyquist from the spectrum `spec` of `m` grid points
+/// spanning `p` electrical periods of a motor of `nr` pole pairs, whose grid starts at `th0`
+/// rad: bin `k·P` is order `k`, `A_k = 2|X|/M`, `φ_k = arg X + π/2 − k·Nr·θ_first`.
+fn harmonics_of(spec: &[Complex<f64>], m: usize, p: usize, nr: f64, max_order: u16, th0: f64) -> Vec<StaticHarmonic> {
+    let mf = m as f64;
+    let mut harmonics = Vec::new();
+    for k in 1..=max_order {
+        let bin = usize::from(k) * p;
+        if bin >= m / 2 {
+            break;
+        }
+        let x = spec[bin];
+        let amp = 2.0 * x.norm() / mf;
+        let phase = wrap_pi(x.im.atan2(x.re) + FRAC_PI_2 - f64::from(k) * nr * th0);
+        harmonics.push(StaticHarmonic { order: k, amplitude_nm: amp, phase_rad: phase });
+    }
+    harmonics
 }
 
 #[cfg(test)]

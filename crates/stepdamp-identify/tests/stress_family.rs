@@ -6,6 +6,10 @@
 //! with [`parse_log`] and fitted from a base profile that carries the true `J` and no detent.
 //! Done when every harmonic of 5 mN·m or more is within max(5 %, 0.5 mN·m) in amplitude and
 //! 0.05 rad in phase, and `Fs` within 10 %, for every motor.
+//!
+//! The seeds ([`TUNING_SEEDS`]) are the motors the thresholds of the fit (among them
+//! `MAX_FRICTION_DEFICIT` of the count-rate rule, docs/identification.md) were tuned on;
+//! [`accept`] holds a set of seeds to the tolerances.
 
 mod independent;
 
@@ -78,13 +82,23 @@ fn identify(seed: u64) -> Outcome {
     }
 }
 
-#[test]
-fn fifty_independent_stick_slip_motors_are_identified_within_tolerance() {
-    let n = 50u64;
-    let out: Vec<Outcome> = (0..n).into_par_iter().map(identify).collect();
+/// The seeds the thresholds were tuned on.
+const TUNING_SEEDS: std::ops::Range<u64> = 0..50;
+
+/// Acceptance: amplitude within max(5 %, 0.5 mN·m) (1 = the
+/// tolerance), phase within 0.05 rad, `Fs` within 10 %.
+const MAX_AMPLITUDE_OVER_TOLERANCE: f64 = 1.0;
+const MAX_PHASE_RAD: f64 = 0.05;
+const MAX_COULOMB_RELATIVE: f64 = 0.10;
+
+/// Identifies the motors of `seeds`, prints each and the worst of each measure under the name
+/// `set`, and asserts the acceptance tolerances on every motor (listing every failure).
+fn accept(set: &str, seeds: std::ops::Range<u64>) {
+    let n = seeds.end - seeds.start;
+    let out: Vec<Outcome> = seeds.into_par_iter().map(identify).collect();
     for o in &out {
         eprintln!(
-            "motor {:2} ({}): amplitude {:.2} of tolerance, phase {:.4} rad, Fs {:.1} %, stopped ≤ {:.0} % — {}",
+            "{set} motor {:2} ({}): amplitude {:.2} of tolerance, phase {:.4} rad, Fs {:.1} %, stopped ≤ {:.0} % — {}",
             o.seed,
             if o.stribeck { "Stribeck" } else { "creep" },
             o.amplitude_over_tolerance,
@@ -101,17 +115,36 @@ fn fifty_independent_stick_slip_motors_are_identified_within_tolerance() {
     let (p, sp) = worst(|o| o.phase_rad);
     let (c, sc) = worst(|o| o.coulomb_relative);
     eprintln!(
-        "stress family ({n} motors): worst amplitude {a:.2} of tolerance (motor {sa}), phase {p:.4} rad (motor {sp}), Fs {:.1} % (motor {sc})",
+        "stress family, {set} ({n} motors): worst amplitude {a:.2} of tolerance (motor {sa}), phase {p:.4} rad (motor {sp}), Fs {:.1} % (motor {sc})",
         100.0 * c
     );
-    for o in &out {
-        assert!(
-            o.amplitude_over_tolerance <= 1.0,
-            "motor {}: amplitude {:.2} of tolerance",
-            o.seed,
-            o.amplitude_over_tolerance
-        );
-        assert!(o.phase_rad <= 0.05, "motor {}: phase error {:.4} rad", o.seed, o.phase_rad);
-        assert!(o.coulomb_relative <= 0.10, "motor {}: Fs error {:.1} %", o.seed, 100.0 * o.coulomb_relative);
-    }
+    let failures: Vec<String> = out
+        .iter()
+        .filter(|o| {
+            o.amplitude_over_tolerance > MAX_AMPLITUDE_OVER_TOLERANCE
+                || o.phase_rad > MAX_PHASE_RAD
+                || o.coulomb_relative > MAX_COULOMB_RELATIVE
+        })
+        .map(|o| {
+            format!(
+                "motor {}: amplitude {:.2} of tolerance, phase {:.4} rad, Fs {:.1} %",
+                o.seed,
+                o.amplitude_over_tolerance,
+                o.phase_rad,
+                100.0 * o.coulomb_relative
+            )
+        })
+        .collect();
+    assert!(
+        failures.is_empty(),
+        "{set}: {} of {n} motors outside the tolerances (amplitude ≤ {MAX_AMPLITUDE_OVER_TOLERANCE}, phase ≤ {MAX_PHASE_RAD} rad, Fs ≤ {} %):\n{}",
+        failures.len(),
+        100.0 * MAX_COULOMB_RELATIVE,
+        failures.join("\n")
+    );
+}
+
+#[test]
+fn fifty_independent_stick_slip_motors_are_identified_within_tolerance() {
+    accept("tuning set", TUNING_SEEDS);
 }

@@ -311,74 +311,12 @@ impl Study {
     pub fn from_toml_str(text: &str, origin: &str, base_dir: &Path) -> Result<Study, StudyError> {
         let bad = |message: String| StudyError::Spec { origin: origin.to_string(), message };
         let spec: StudySpec = toml::from_str(text).map_err(|e| bad(one_line(&e.to_string())))?;
-        let nominal = match Profile::preset(&spec.motor) {
-            Some(p) => p,
-            None => {
-                let path = base_dir.join(&spec.motor);
-                if !path.exists() {
-                    return Err(bad(format!(
-                        "motor = '{}': not a preset ({}) nor a file ({})",
-                        spec.motor,
-                        stepdamp_sim::PRESETS.join(", "),
-                        path.display()
-                    )));
-                }
-                Profile::from_file(&path).map_err(|source| StudyError::Motor { origin: origin.to_string(), source })?
-            }
-        };
-        let s = &spec.sweep;
+        let nominal = nominal_motor(&spec.motor, origin, base_dir)?;
         if !(1..=MAX_VARIANTS).contains(&spec.variants) {
             return Err(bad(format!("variants = {}: must be in 1..={MAX_VARIANTS}", spec.variants)));
         }
-        if s.modes.is_empty() {
-            return Err(bad("sweep.modes: the list is empty".into()));
-        }
-        // The core's names (`Mode::name`, `Compensation::name`); its message lists them.
-        for m in &s.modes {
-            m.parse::<Mode>().map_err(|e| bad(format!("sweep.modes: '{m}': {e}")))?;
-        }
-        for c in &s.compensations {
-            c.parse::<Compensation>().map_err(|e| bad(format!("sweep.compensations: '{c}': {e}")))?;
-        }
-        if !s.compensations.iter().any(|c| c != "off") {
-            return Err(bad("sweep.compensations: name at least one besides off (off is always run)".into()));
-        }
-        if !(1..=50).contains(&s.points) {
-            return Err(bad(format!("sweep.points = {}: must be in 1..=50", s.points)));
-        }
-        if !(s.span.is_finite() && (0.0..0.5).contains(&s.span)) {
-            return Err(bad(format!("sweep.span = {}: must be in [0, 0.5)", Num(s.span))));
-        }
-        if s.points > 1 && s.span == 0.0 {
-            return Err(bad(format!("sweep.span = 0 with sweep.points = {}: the points would coincide", s.points)));
-        }
-        if !(s.duration_s.is_finite() && (0.2..=100.0).contains(&s.duration_s)) {
-            return Err(bad(format!("sweep.duration_s = {}: must be in 0.2..=100 s", Num(s.duration_s))));
-        }
-        if check_substeps(i64::from(s.substeps)).is_err() {
-            return Err(bad(format!("sweep.substeps = {}: must be in 1..={MAX_SUBSTEPS}", s.substeps)));
-        }
-        if !(s.current_noise_a.is_finite() && s.current_noise_a >= 0.0) {
-            return Err(bad(format!("sweep.current_noise_a = {}: must be ≥ 0 A", Num(s.current_noise_a))));
-        }
-        let have: Vec<u16> = nominal.motor.detent.iter().map(|h| h.order).collect();
-        let orders = match &s.orders {
-            Some(o) => {
-                if o.is_empty() {
-                    return Err(bad("sweep.orders: the list is empty".into()));
-                }
-                for (i, &k) in o.iter().enumerate() {
-                    if k == 0 || o[..i].contains(&k) {
-                        return Err(bad(format!("sweep.orders: {k}: orders must be distinct and ≥ 1")));
-                    }
-                }
-                o.clone()
-            }
-            None if have.is_empty() => {
-                return Err(bad(format!("sweep.orders: {} has no detent harmonics; name the orders", nominal.name)));
-            }
-            None => nominal.detent_orders(),
-        };
+        spec.sweep.check().map_err(bad)?;
+        let orders = spec.sweep.orders_for(&nominal).map_err(bad)?;
         spec.plant.check("plant").map_err(bad)?;
         spec.controller_error.check("controller_error").map_err(bad)?;
         if spec.controller_error.load_torque_nm.is_some() {
@@ -432,4 +370,84 @@ impl Study {
 /// A parser message on one line.
 fn one_line(s: &str) -> String {
     s.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// The spec's `motor`: a preset name, or a profile file relative to `base_dir`.
+fn nominal_motor(motor: &str, origin: &str, base_dir: &Path) -> Result<Profile, StudyError> {
+    if let Some(p) = Profile::preset(motor) {
+        return Ok(p);
+    }
+    let path = base_dir.join(motor);
+    if !path.exists() {
+        return Err(StudyError::Spec {
+            origin: origin.to_string(),
+            message: format!(
+                "motor = '{motor}': not a preset ({}) nor a file ({})",
+                stepdamp_sim::PRESETS.join(", "),
+                path.display()
+            ),
+        });
+    }
+    Profile::from_file(&path).map_err(|source| StudyError::Motor { origin: origin.to_string(), source })
+}
+
+impl SweepSection {
+    /// Checks the section's names and ranges; the error is the message (key, value, range).
+    fn check(&self) -> Result<(), String> {
+        let s = self;
+        if s.modes.is_empty() {
+            return Err("sweep.modes: the list is empty".into());
+        }
+        // The core's names (`Mode::name`, `Compensation::name`); its message lists them.
+        for m in &s.modes {
+            m.parse::<Mode>().map_err(|e| format!("sweep.modes: '{m}': {e}"))?;
+        }
+        for c in &s.compensations {
+            c.parse::<Compensation>().map_err(|e| format!("sweep.compensations: '{c}': {e}"))?;
+        }
+        if !s.compensations.iter().any(|c| c != "off") {
+            return Err("sweep.compensations: name at least one besides off (off is always run)".into());
+        }
+        if !(1..=50).contains(&s.points) {
+            return Err(format!("sweep.points = {}: must be in 1..=50", s.points));
+        }
+        if !(s.span.is_finite() && (0.0..0.5).contains(&s.span)) {
+            return Err(format!("sweep.span = {}: must be in [0, 0.5)", Num(s.span)));
+        }
+        if s.points > 1 && s.span == 0.0 {
+            return Err(format!("sweep.span = 0 with sweep.points = {}: the points would coincide", s.points));
+        }
+        if !(s.duration_s.is_finite() && (0.2..=100.0).contains(&s.duration_s)) {
+            return Err(format!("sweep.duration_s = {}: must be in 0.2..=100 s", Num(s.duration_s)));
+        }
+        if check_substeps(i64::from(s.substeps)).is_err() {
+            return Err(format!("sweep.substeps = {}: must be in 1..={MAX_SUBSTEPS}", s.substeps));
+        }
+        if !(s.current_noise_a.is_finite() && s.current_noise_a >= 0.0) {
+            return Err(format!("sweep.current_noise_a = {}: must be ≥ 0 A", Num(s.current_noise_a)));
+        }
+        Ok(())
+    }
+
+    /// The orders to sweep: the section's (distinct, ≥ 1), else the nominal motor's detent
+    /// orders; the error is the message.
+    fn orders_for(&self, nominal: &Profile) -> Result<Vec<u16>, String> {
+        match &self.orders {
+            Some(o) => {
+                if o.is_empty() {
+                    return Err("sweep.orders: the list is empty".into());
+                }
+                for (i, &k) in o.iter().enumerate() {
+                    if k == 0 || o[..i].contains(&k) {
+                        return Err(format!("sweep.orders: {k}: orders must be distinct and ≥ 1"));
+                    }
+                }
+                Ok(o.clone())
+            }
+            None if nominal.motor.detent.is_empty() => {
+                Err(format!("sweep.orders: {} has no detent harmonics; name the orders", nominal.name))
+            }
+            None => Ok(nominal.detent_orders()),
+        }
+    }
 }

@@ -6,6 +6,7 @@ use super::thresholds::MIN_BLOCKS_PER_LOG;
 use super::{Effort, FitError, FitOptions, RunSummary, SPEED_RATIO, Warning};
 use crate::kinematics;
 use crate::lsq::{self, Design};
+use std::borrow::Cow;
 use std::f64::consts::TAU;
 
 /// Column indices of the unknowns: `a_k, b_k` per order (`0..2·nh`), then `Fs`, `[D]`,
@@ -45,10 +46,31 @@ pub(super) struct Built {
 /// Builds the design of one pass; `d_ripple` is the `D` of the viscous torque of the speed
 /// ripple subtracted from the data.
 pub(super) fn build(prepared: &[&Prepared], o: &FitOptions, d_ripple: f64) -> Result<Built, FitError> {
-    let nr = f64::from(o.pole_pairs);
-    let kmax = *o.orders.iter().max().expect("checked non-empty");
+    let (one_direction, mut warnings) = direction_warnings(prepared, o);
+    let terms = friction_terms(prepared, o.viscous_fallback_nm_s_per_rad);
+    let fit_d = terms.fit_d;
+    warnings.extend(terms.warning);
+    let cols = Columns::layout(o.orders.len(), fit_d, terms.fit_c, o.fit_inertia);
+    let mut rows = Rows::new(cols, prepared.iter().map(|p| p.hi - p.lo).sum());
+    // The viscous torque of the mean speed, taken out of the data when `D` is not a column.
+    let d_fixed = if fit_d { 0.0 } else { o.viscous_fallback_nm_s_per_rad };
+    let mut runs = Vec::with_capacity(prepared.len());
+    for prep in prepared {
+        let counts = rows.push_log(prep, o, d_ripple, d_fixed).map_err(|e| match e {
+            RowError::NoCommand(e) => e,
+            RowError::NonFinite(what) => super::solve::non_finite(prepared, o, what),
+        })?;
+        let (run, run_warnings) = summarise(prep, o, counts);
+        warnings.extend(run_warnings);
+        runs.push(run);
+    }
+    let Rows { design, theta_e, alpha, .. } = rows;
+    Ok(Built { design, cols, theta_e, alpha, runs, warnings, one_direction, fit_d })
+}
 
-    // Which terms the data can separate.
+/// Which directions the logs cover: the only direction logged (when only one is), and the
+/// warnings for a single direction or too few electrical periods in one.
+fn direction_warnings(prepared: &[&Prepared], o: &FitOptions) -> (Option<&'static str>, Vec<Warning>) {
     let mut warnings = Vec::new();
     let (mut fwd_periods, mut rev_periods) = (0.0, 0.0);
     for p in prepared {
@@ -71,72 +93,110 @@ pub(super) fn build(prepared: &[&Prepared], o: &FitOptions, d_ripple: f64) -> Re
             warnings.push(Warning::FewPeriods { direction: dir, periods: per, recommended: o.recommended_periods });
         }
     }
-    let terms = friction_terms(prepared, o.viscous_fallback_nm_s_per_rad);
-    let (fit_d, both) = (terms.fit_d, terms.fit_c);
-    warnings.extend(terms.warning);
+    (one_direction, warnings)
+}
 
-    // Columns: a_k, b_k per order; Fs; [D]; [c]; [J].
-    let nh = o.orders.len();
-    let col_fs = 2 * nh;
-    let col_d = fit_d.then_some(col_fs + 1);
-    let col_c = both.then_some(col_fs + 1 + usize::from(fit_d));
-    let col_j = o.fit_inertia.then_some(col_fs + 1 + usize::from(fit_d) + usize::from(both));
-    let p = col_fs + 1 + usize::from(fit_d) + usize::from(both) + usize::from(o.fit_inertia);
-    let cols = Columns { fs: col_fs, d: col_d, c: col_c, j: col_j, p };
-    let total: usize = prepared.iter().map(|p| p.hi - p.lo).sum();
-    let mut design = Design::new(p);
-    design.x.reserve(total * p);
-    design.y.reserve(total);
-    design.block.reserve(total);
-    let mut theta_e_used = Vec::with_capacity(total);
-    // dω/dt of each used sample (the inertial torque is J times it).
-    let mut alpha_used = Vec::with_capacity(total);
-    let mut row = vec![0.0; p];
-    let mut block_base = 0u32;
-    let mut runs = Vec::new();
-    let d_fixed = if fit_d { 0.0 } else { o.viscous_fallback_nm_s_per_rad };
-    let non_finite = |what: String| super::solve::non_finite(prepared, o, what);
-    for prep in prepared {
-        let (log, kin) = (prep.log, &prep.kin);
-        let effort = match o.effort {
-            Effort::MeasuredIq => &log.i_q_a,
-            Effort::CommandIq => log.iq_cmd_a.as_ref().ok_or_else(|| {
-                FitError::Options(format!("{}: no iq_cmd_a column, needed for the command effort", log.source))
-            })?,
-        };
-        // The effort through the filter `dω/dt` went through (see the module documentation,
-        // *Inertia*).
-        // The harmonics in it are scaled by the filter's gain at their frequency (≥ 0.998 by
-        // the choice of the corner), and so are their regressors.
+impl Columns {
+    /// The columns for `nh` orders: `a_k, b_k` per order, then `Fs`, and `D`, `c`, `J`
+    /// where fitted, in that order.
+    fn layout(nh: usize, fit_d: bool, fit_c: bool, fit_j: bool) -> Self {
+        let fs = 2 * nh;
+        let d = fit_d.then_some(fs + 1);
+        let c = fit_c.then_some(fs + 1 + usize::from(fit_d));
+        let j = fit_j.then_some(fs + 1 + usize::from(fit_d) + usize::from(fit_c));
+        let p = fs + 1 + usize::from(fit_d) + usize::from(fit_c) + usize::from(fit_j);
+        Columns { fs, d, c, j, p }
+    }
+
+    /// Fills the harmonic and friction columns of `row` for a sample whose `sin, cos(k·θe)`
+    /// per order are `sc`, with each order's regressors scaled by its `gain` (the effort's
+    /// filter), in a log of mean speed `wbar` rad/s. The `J` column is left as it is.
+    fn fill(&self, row: &mut [f64], sc: &[f64], gain: &[f64], wbar: f64) {
+        for (j, g) in gain.iter().enumerate() {
+            row[2 * j] = sc[2 * j] * g;
+            row[2 * j + 1] = sc[2 * j + 1] * g;
+        }
+        row[self.fs] = wbar.signum();
+        if let Some(cd) = self.d {
+            row[cd] = wbar;
+        }
+        if let Some(cc) = self.c {
+            row[cc] = 1.0;
+        }
+    }
+}
+
+/// What a log's rows could not be built for.
+enum RowError {
+    /// The effort asked for is not in the log.
+    NoCommand(FitError),
+    /// A torque or `dω/dt` is not finite (what and where).
+    NonFinite(String),
+}
+
+/// How many samples of a log's window went into the design, and how many were left out
+/// (too slow or stuck).
+struct LogCounts {
+    used: usize,
+    stalled: usize,
+}
+
+/// The rows of the design as they are built, log by log, with the angle and `dω/dt` of each.
+struct Rows {
+    cols: Columns,
+    design: Design,
+    /// Electrical angle of each row's sample, `[0, 2π)`.
+    theta_e: Vec<f64>,
+    /// `dω/dt` of each row's sample (the inertial torque is `J` times it).
+    alpha: Vec<f64>,
+    /// The row being filled, `cols.p` values.
+    row: Vec<f64>,
+    /// First block label of the next log (each log's blocks follow the previous log's).
+    block_base: u32,
+}
+
+impl Rows {
+    /// Room for `total` rows.
+    fn new(cols: Columns, total: usize) -> Self {
+        let mut design = Design::new(cols.p);
+        design.x.reserve(total * cols.p);
+        design.y.reserve(total);
+        design.block.reserve(total);
+        Rows {
+            cols,
+            design,
+            theta_e: Vec::with_capacity(total),
+            alpha: Vec::with_capacity(total),
+            row: vec![0.0; cols.p],
+            block_base: 0,
+        }
+    }
+
+    /// Appends a row for each sample of the window of `prep` that moves at least
+    /// [`FitOptions::min_speed_fraction`] of the mean speed in its direction and is kept:
+    /// the torque `Km·i − J·dω/dt − d_ripple·(ω − ω̄) − d_fixed·ω̄` (N·m; `J·dω/dt` only when
+    /// `J` is not a column) against the columns.
+    fn push_log(
+        &mut self,
+        prep: &Prepared,
+        o: &FitOptions,
+        d_ripple: f64,
+        d_fixed: f64,
+    ) -> Result<LogCounts, RowError> {
+        let (log, kin, cols) = (prep.log, &prep.kin, self.cols);
+        let (effort, harmonic_gain) = filtered_effort(prep, o)?;
         let wbar = prep.speed;
-        let smoothed;
-        let mut harmonic_gain = vec![1.0; o.orders.len()];
-        let effort = if o.smooth_effort {
-            let mut v = effort.clone();
-            let (fs, fc) = kinematics::smooth(&log.t_s, &mut v, kin.corner_hz);
-            for (g, &k) in harmonic_gain.iter_mut().zip(&o.orders) {
-                *g = kinematics::smooth_gain(f64::from(k) * nr * wbar.abs() / TAU, fc, fs);
-            }
-            smoothed = v;
-            &smoothed
-        } else {
-            effort
-        };
         let vmin = o.min_speed_fraction * wbar.abs();
-        // Blocks of one electrical period (at least 10 blocks per log).
-        let span = (log.theta_fb_rad[prep.hi - 1] - log.theta_fb_rad[prep.lo]).abs();
-        let per_block = if prep.periods >= MIN_BLOCKS_PER_LOG { TAU / nr } else { span / MIN_BLOCKS_PER_LOG }
-            .max(f64::MIN_POSITIVE);
-        let th0 = log.theta_fb_rad[prep.lo];
+        let blocks = Blocks::of(prep, f64::from(o.pole_pairs));
         // The instrument for J: the part of dω/dt periodic in the fitted orders, this log's
         // own (see the module documentation, *Inertia*).
-        let alpha_periodic = if col_j.is_some() {
+        let alpha_periodic = if cols.j.is_some() {
             prep.periodic.get_or_init(|| periodic_part(prep, o.orders.len())).as_ref()
         } else {
             None
         };
+        let nr = f64::from(o.pole_pairs);
         let (mut used, mut stalled, mut max_block) = (0usize, 0usize, 0u32);
-        #[allow(clippy::needless_range_loop)] // five parallel arrays are read at i
         for i in prep.lo..prep.hi {
             let w = kin.omega_rad_s[i];
             if w * wbar.signum() < vmin || !prep.keep[i] {
@@ -144,65 +204,108 @@ pub(super) fn build(prepared: &[&Prepared], o: &FitOptions, d_ripple: f64) -> Re
                 continue;
             }
             let th = prep.theta[i];
-            let te = nr * th;
             let sc = prep.harmonics_at(i);
-            for (j, g) in harmonic_gain.iter().enumerate() {
-                row[2 * j] = sc[2 * j] * g;
-                row[2 * j + 1] = sc[2 * j + 1] * g;
-            }
-            row[col_fs] = wbar.signum();
-            if let Some(cd) = col_d {
-                row[cd] = wbar;
-            }
-            if let Some(cc) = col_c {
-                row[cc] = 1.0;
-            }
+            cols.fill(&mut self.row, sc, &harmonic_gain, wbar);
             let alpha = kin.alpha_rad_s2[i];
-            let j_alpha = match col_j {
+            let j_alpha = match cols.j {
                 Some(cj) => {
-                    row[cj] = alpha_periodic.map_or(0.0, |c| c.at(sc));
+                    self.row[cj] = alpha_periodic.map_or(0.0, |c| c.at(sc));
                     0.0
                 }
                 None => o.inertia_kg_m2 * alpha,
             };
             let y = o.km_nm_per_a * effort[i] - j_alpha - d_ripple * (w - wbar) - d_fixed * wbar;
             if !(y.is_finite() && alpha.is_finite()) {
-                return Err(non_finite(format!("{}: the torque Km·i − J·dω/dt at t = {} s", log.source, log.t_s[i])));
+                let what = format!("{}: the torque Km·i − J·dω/dt at t = {} s", log.source, log.t_s[i]);
+                return Err(RowError::NonFinite(what));
             }
-            let b = ((th - th0).abs() / per_block) as u32;
+            let b = blocks.index(th);
             max_block = max_block.max(b);
-            design.push(&row, y, block_base + b);
-            theta_e_used.push(te.rem_euclid(TAU));
-            alpha_used.push(alpha);
+            self.design.push(&self.row, y, self.block_base + b);
+            self.theta_e.push((nr * th).rem_euclid(TAU));
+            self.alpha.push(alpha);
             used += 1;
         }
-        block_base += max_block + 1;
-        let considered = (prep.hi - prep.lo).max(1);
-        let stalled_fraction = stalled as f64 / considered as f64;
-        let back = prep.back_steps as f64 / prep.steps.max(1) as f64;
-        let highest_harmonic_hz = f64::from(kmax) * nr * wbar.abs() / TAU;
-        warnings.extend(super::warnings::of_run(
-            &log.source,
-            o,
-            stalled_fraction,
-            back,
-            wbar,
-            kmax,
-            highest_harmonic_hz,
-        ));
-        runs.push(RunSummary {
-            source: log.source.clone(),
-            mean_speed_rad_s: wbar,
-            duration_s: log.t_s[prep.hi - 1] - log.t_s[prep.lo],
-            electrical_periods: prep.periods,
-            samples_used: used,
-            samples: log.len(),
-            highest_harmonic_hz,
-            inertial_share: 0.0,
-            back_step_fraction: back,
-        });
+        self.block_base += max_block + 1;
+        Ok(LogCounts { used, stalled })
     }
-    Ok(Built { design, cols, theta_e: theta_e_used, alpha: alpha_used, runs, warnings, one_direction, fit_d })
+}
+
+/// The effort of a log the fit uses (`Km` times it is the motor torque), through the filter
+/// `dω/dt` went through when [`FitOptions::smooth_effort`] (see the module documentation,
+/// *Inertia*), and the filter's gain at each order's frequency (≥ 0.998 by the choice of the
+/// corner; 1 without the filter), by which the harmonic regressors are scaled too.
+fn filtered_effort<'a>(prep: &Prepared<'a>, o: &FitOptions) -> Result<(Cow<'a, [f64]>, Vec<f64>), RowError> {
+    let log = prep.log;
+    let effort = match o.effort {
+        Effort::MeasuredIq => &log.i_q_a,
+        Effort::CommandIq => log.iq_cmd_a.as_ref().ok_or_else(|| {
+            RowError::NoCommand(FitError::Options(format!(
+                "{}: no iq_cmd_a column, needed for the command effort",
+                log.source
+            )))
+        })?,
+    };
+    let mut harmonic_gain = vec![1.0; o.orders.len()];
+    if !o.smooth_effort {
+        return Ok((Cow::Borrowed(effort), harmonic_gain));
+    }
+    let nr = f64::from(o.pole_pairs);
+    let mut v = effort.clone();
+    let (fs, fc) = kinematics::smooth(&log.t_s, &mut v, prep.kin.corner_hz);
+    for (g, &k) in harmonic_gain.iter_mut().zip(&o.orders) {
+        *g = kinematics::smooth_gain(f64::from(k) * nr * prep.speed.abs() / TAU, fc, fs);
+    }
+    Ok((Cow::Owned(v), harmonic_gain))
+}
+
+/// The blocks of a log for the robust covariance ([`crate::lsq`]): one electrical period
+/// each, or a tenth ([`MIN_BLOCKS_PER_LOG`]) of the window's angle when it is shorter.
+struct Blocks {
+    /// Angle at the window's start, rad.
+    th0: f64,
+    /// Angle per block, rad.
+    per_block: f64,
+}
+
+impl Blocks {
+    fn of(prep: &Prepared, nr: f64) -> Self {
+        let theta = &prep.log.theta_fb_rad;
+        let span = (theta[prep.hi - 1] - theta[prep.lo]).abs();
+        let per_block = if prep.periods >= MIN_BLOCKS_PER_LOG { TAU / nr } else { span / MIN_BLOCKS_PER_LOG }
+            .max(f64::MIN_POSITIVE);
+        Blocks { th0: theta[prep.lo], per_block }
+    }
+
+    /// The block (from 0 at the window's start) of a sample at angle `th`, rad.
+    fn index(&self, th: f64) -> u32 {
+        ((th - self.th0).abs() / self.per_block) as u32
+    }
+}
+
+/// The summary of a log's part in the design (`inertial_share` still 0) and the warnings
+/// about it (stalls, back steps, a harmonic beyond the servo).
+fn summarise(prep: &Prepared, o: &FitOptions, counts: LogCounts) -> (RunSummary, Vec<Warning>) {
+    let (log, wbar) = (prep.log, prep.speed);
+    let nr = f64::from(o.pole_pairs);
+    let kmax = *o.orders.iter().max().expect("checked non-empty");
+    let considered = (prep.hi - prep.lo).max(1);
+    let stalled_fraction = counts.stalled as f64 / considered as f64;
+    let back = prep.back_steps as f64 / prep.steps.max(1) as f64;
+    let highest_harmonic_hz = f64::from(kmax) * nr * wbar.abs() / TAU;
+    let warnings = super::warnings::of_run(&log.source, o, stalled_fraction, back, wbar, kmax, highest_harmonic_hz);
+    let run = RunSummary {
+        source: log.source.clone(),
+        mean_speed_rad_s: wbar,
+        duration_s: log.t_s[prep.hi - 1] - log.t_s[prep.lo],
+        electrical_periods: prep.periods,
+        samples_used: counts.used,
+        samples: log.len(),
+        highest_harmonic_hz,
+        inertial_share: 0.0,
+        back_step_fraction: back,
+    };
+    (run, warnings)
 }
 
 /// Fourier coefficients (sin, cos per order, then the mean) of a log's `dω/dt` against the
