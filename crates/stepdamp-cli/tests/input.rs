@@ -115,7 +115,6 @@ fn every_file_argument_refuses_an_endless_input_with_one_line() {
         &["identify", "--log", z, "--motor", "patent-motor", "--out", "out/x.toml"],
         &["/dev/zero", "longer than"],
     );
-    let args =
-        ["identify", "static", "--table", z, "--sign", "on-rotor", "--motor", "patent-motor", "--out", "out/x.toml"];
+    let args = ["identify", "static", "--table", z, "--sign", "on-rotor", "--motor", "patent-motor", "--out", "x.toml"];
     assert_refused(d, &args, &["/dev/zero", "longer than"]);
 }
