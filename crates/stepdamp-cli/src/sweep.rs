@@ -131,8 +131,7 @@ pub fn run(a: SweepArgs, g: &Global) -> Result<()> {
     let mut spec = spec_of(&a)?;
     spec.table = match &a.table {
         Some(path) => {
-            let bytes = std::fs::read(path).with_context(|| format!("--table {}", path.display()))?;
-            let (t, kind) = stepdamp_export::load_table(&bytes, &path.display().to_string(), None)?;
+            let (t, kind) = stepdamp_export::load_table_file(path, None).context("--table")?;
             eprintln!("note: --table {}: {kind}", path.display());
             Some(t)
         }

@@ -93,3 +93,28 @@ fn implausible_profiles_are_refused_naming_file_key_value_and_range() {
         }
     }
 }
+
+#[test]
+fn every_file_argument_refuses_an_endless_input_with_one_line() {
+    // `/dev/zero` as any file argument: refused after reading at most the kind's limit
+    // (docs/files.md#size-limits), not read until memory runs out.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let z = "/dev/zero";
+    assert_refused(d, &["study", "--spec", z, "--out", "out"], &["/dev/zero", "1048576 bytes"]);
+    assert_refused(d, &["sweep", "--table", z, "--points", "2", "--out", "out"], &["--table", "/dev/zero", "1048576"]);
+    for form in ["--readback", "--m972"] {
+        let args =
+            ["import", "prusa", form, z, "--motor", "patent-motor", "--current-rms", "0.65", "--out", "out/p.toml"];
+        assert_refused(d, &args, &["/dev/zero", "1048576"]);
+    }
+    assert_refused(d, &["sweep", "--motor", z, "--out", "out"], &["/dev/zero", "1048576"]);
+    assert_refused(d, &["sweep", "--controller-motor", z, "--out", "out"], &["/dev/zero", "1048576"]);
+    assert_refused(
+        d,
+        &["identify", "--log", z, "--motor", "patent-motor", "--out", "out/x.toml"],
+        &["/dev/zero", "longer than"],
+    );
+    let args = ["identify", "static", "--table", z, "--sign", "on-rotor", "--motor", "patent-motor", "--out", "x.toml"];
+    assert_refused(d, &args, &["/dev/zero", "longer than"]);
+}

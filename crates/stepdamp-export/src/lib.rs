@@ -53,6 +53,16 @@ pub enum ExportError {
     Sim(String),
 }
 
+/// [`load_table`] of the file at `path`, read whole up to [`prusa::read::MAX_BYTES`]
+/// ([`prusa::read::read_capped`]): a longer or endless input is refused within that much.
+pub fn load_table_file(
+    path: &std::path::Path,
+    axis: Option<char>,
+) -> Result<(stepdamp_core::CorrectionTable, String), ExportError> {
+    let bytes = prusa::read::read_capped(path)?;
+    load_table(&bytes, &path.display().to_string(), axis)
+}
+
 /// A replay table read from a file, and what it was. A 168-byte Prusa correction file is read
 /// in the scale of firmware ≥ 6.3.1 (the releases users run); Prusa text says its own version.
 pub fn load_table(

@@ -8,11 +8,14 @@
 use std::io::{self, Read};
 use std::path::Path;
 
-/// Reads a whole text file of at most `max_bytes` bytes (profiles, small tables). A longer
-/// input (or an endless one like `/dev/zero`) is refused after reading `max_bytes + 1`
-/// bytes, with an [`io::ErrorKind::InvalidData`] error saying the limit; so is text that is
-/// not UTF-8.
-pub fn read_to_string_bounded(path: &Path, max_bytes: u64) -> io::Result<String> {
+/// Reads a whole file of at most `max_bytes` bytes into memory, in one pass (so a FIFO or
+/// a device is read once, never measured first). A longer input (or an endless one like
+/// `/dev/zero`) is refused after reading `max_bytes + 1` bytes, with an
+/// [`io::ErrorKind::InvalidData`] error saying the limit; memory stays below
+/// `max_bytes + 1` plus the buffer's growth. Every file argument read whole goes through
+/// here (or [`read_to_string_bounded`]); the caller's kind of file defines `max_bytes` with
+/// its reason (docs/files.md#size-limits).
+pub fn read_bounded(path: &Path, max_bytes: u64) -> io::Result<Vec<u8>> {
     let f = std::fs::File::open(path)?;
     let mut buf = Vec::new();
     f.take(max_bytes + 1).read_to_end(&mut buf)?;
@@ -22,6 +25,14 @@ pub fn read_to_string_bounded(path: &Path, max_bytes: u64) -> io::Result<String>
             format!("larger than {max_bytes} bytes: not a file of this kind (or an endless input)"),
         ));
     }
+    Ok(buf)
+}
+
+/// Reads a whole text file of at most `max_bytes` bytes (profiles, study specs) with
+/// [`read_bounded`]; text that is not UTF-8 is refused with an
+/// [`io::ErrorKind::InvalidData`] error naming the first bad byte.
+pub fn read_to_string_bounded(path: &Path, max_bytes: u64) -> io::Result<String> {
+    let buf = read_bounded(path, max_bytes)?;
     String::from_utf8(buf).map_err(|e| {
         io::Error::new(io::ErrorKind::InvalidData, format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to()))
     })
@@ -152,6 +163,32 @@ mod tests {
         let e = read_to_string_bounded(Path::new("/dev/zero"), 1000).unwrap_err();
         assert_eq!(e.kind(), io::ErrorKind::InvalidData);
         assert!(e.to_string().contains("larger than 1000 bytes"), "{e}");
+    }
+
+    #[test]
+    fn a_fifo_is_read_once_to_its_end_or_refused_at_the_limit() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("fifo");
+        let made = std::process::Command::new("mkfifo").arg(&p).status().is_ok_and(|s| s.success());
+        if !made {
+            return; // no mkfifo on this system: nothing to prove
+        }
+        let writer = {
+            let p = p.clone();
+            // A broken pipe, if the reader stops first, is what a refused FIFO does to its writer.
+            std::thread::spawn(move || drop(std::fs::write(&p, vec![b'x'; 5000])))
+        };
+        let e = read_bounded(&p, 4096).unwrap_err();
+        assert!(e.to_string().contains("larger than 4096 bytes"), "{e}");
+        writer.join().unwrap();
+        let p2 = dir.path().join("fifo2");
+        assert!(std::process::Command::new("mkfifo").arg(&p2).status().unwrap().success());
+        let writer = {
+            let p2 = p2.clone();
+            std::thread::spawn(move || std::fs::write(&p2, b"abc").unwrap())
+        };
+        assert_eq!(read_bounded(&p2, 4096).unwrap(), b"abc");
+        writer.join().unwrap();
     }
 
     #[test]

@@ -297,10 +297,16 @@ pub struct Study {
     pub orders: Vec<u16>,
 }
 
+/// Largest study spec read, in bytes: 1 MiB, a thousand times a real spec (the examples
+/// are under 1 kB), so that a wrong path (`/dev/zero`, a log) is refused after reading that
+/// much instead of filling the memory (docs/files.md#size-limits).
+pub const MAX_SPEC_BYTES: u64 = 1 << 20;
+
 impl Study {
-    /// Reads and checks a spec file.
+    /// Reads and checks a spec file of at most [`MAX_SPEC_BYTES`] (read in one pass: a FIFO
+    /// works, an endless input is refused).
     pub fn load(path: &Path) -> Result<Study, StudyError> {
-        let text = std::fs::read_to_string(path)
+        let text = stepdamp_out::input::read_to_string_bounded(path, MAX_SPEC_BYTES)
             .map_err(|source| StudyError::Read { path: path.display().to_string(), source })?;
         let dir = path.parent().unwrap_or(Path::new("."));
         Study::from_toml_str(&text, &path.display().to_string(), dir)

@@ -180,3 +180,9 @@ fn spec_errors_print_numbers_in_short_form() {
     let e = err(&format!("{base}[sweep]\nduration_s = 1e-300\n"));
     assert!(e.contains("sweep.duration_s = 1e-300:"), "{e}");
 }
+
+#[test]
+fn an_endless_spec_is_refused_after_the_spec_limit() {
+    let e = Study::load(Path::new("/dev/zero")).unwrap_err().to_string();
+    assert!(e.contains("/dev/zero") && e.contains(&crate::spec::MAX_SPEC_BYTES.to_string()), "{e}");
+}

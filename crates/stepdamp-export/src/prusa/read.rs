@@ -10,26 +10,26 @@
 
 use super::{FILE_BYTES, Firmware, ITEMS, PrusaCorrection, Spectrum, decode_file};
 use crate::ExportError;
-use std::io::Read;
 use std::path::Path;
 
-/// The largest input read (1 MiB; a full read-back of both axes is under 3 kB).
+/// The largest input read: 1 MiB, for every correction table read (a Prusa read-back, file
+/// or `M973` lines, a Klipper block: `import prusa`, `sweep --table`); a full read-back of
+/// both axes is under 3 kB and a Klipper block under 1 kB, so anything larger is a wrong
+/// path (`/dev/zero`, a log), refused after reading this much (docs/files.md#size-limits).
 pub const MAX_BYTES: usize = 1 << 20;
 
-/// Reads at most [`MAX_BYTES`] of `path`; a longer input (or `/dev/zero`) is refused after
-/// reading `MAX_BYTES + 1` bytes.
+/// Reads at most [`MAX_BYTES`] of `path` in one pass ([`stepdamp_out::input::read_bounded`]);
+/// a longer input (or `/dev/zero`, or a FIFO that does not end) is refused after reading
+/// `MAX_BYTES + 1` bytes.
 pub fn read_capped(path: &Path) -> Result<Vec<u8>, ExportError> {
     let what = path.display().to_string();
     let bad = |reason: String| ExportError::Parse { what: what.clone(), reason };
-    let f = std::fs::File::open(path).map_err(|e| bad(format!("cannot open: {e}")))?;
-    let mut out = Vec::new();
-    f.take(MAX_BYTES as u64 + 1).read_to_end(&mut out).map_err(|e| bad(format!("cannot read: {e}")))?;
-    if out.len() > MAX_BYTES {
-        return Err(bad(format!(
-            "more than {MAX_BYTES} bytes (1 MiB): not a Prusa read-back (M971 prints 34 short lines per axis)"
-        )));
-    }
-    Ok(out)
+    stepdamp_out::input::read_bounded(path, MAX_BYTES as u64).map_err(|e| match e.kind() {
+        std::io::ErrorKind::InvalidData => bad(format!(
+            "more than {MAX_BYTES} bytes (1 MiB): not a correction table (an M971 read-back prints 34 short lines per axis, a Klipper block is under 1 kB)"
+        )),
+        _ => bad(format!("cannot read: {e}")),
+    })
 }
 
 /// A correction read from bytes: a 168-byte file (interpreted for `file_firmware`: the
@@ -373,6 +373,12 @@ mod tests {
         (0..ITEMS)
             .map(|n| format!("M971 {axis} {dir} I{n} M{} P0.00000\n", if n == 4 { m4 } else { "0.00000" }))
             .collect()
+    }
+
+    #[test]
+    fn an_endless_table_file_is_refused_after_the_limit() {
+        let e = crate::load_table_file(Path::new("/dev/zero"), None).unwrap_err().to_string();
+        assert!(e.contains("/dev/zero") && e.contains(&MAX_BYTES.to_string()), "{e}");
     }
 
     #[test]

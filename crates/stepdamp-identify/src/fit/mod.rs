@@ -138,6 +138,7 @@ mod options;
 mod prepare;
 mod report;
 mod result;
+mod sanity;
 mod solve;
 mod thresholds;
 mod warnings;
@@ -198,12 +199,14 @@ pub fn fit(logs: &[RunLog], o: &FitOptions) -> Result<Fit, FitError> {
     let speeds: Vec<f64> = prepared.iter().map(|p| p.speed).collect();
     let choice = crate::conditions::inertia_choice(o.fit_inertia, o.inertia, &speeds);
     let mut f = two_passes(&prepared, &FitOptions { fit_inertia: choice.is_ok(), ..o.clone() })?;
+    sanity::refuse_unphysical(&f)?;
     let decision = match (choice, f.inertia_kg_m2) {
         (Ok(forced), Some(j)) if forced || j.ci95 <= crate::conditions::MAX_INERTIA_INTERVAL * j.value => {
             crate::conditions::Decision::InertiaFitted { value: j.value, ci95: j.ci95, forced }
         }
         (Ok(_), Some(j)) => {
             f = two_passes(&prepared, &held)?;
+            sanity::refuse_unphysical(&f)?;
             let reason = if j.value > 0.0 {
                 format!("its interval ±{:.0} % is wide (the fit gave {:.4e} kg·m²)", 100.0 * j.ci95 / j.value, j.value)
             } else {

@@ -165,6 +165,17 @@ pub enum FitError {
         /// Where the data are largest (or not a number).
         detail: String,
     },
+    /// Friction, damping or inertia came out significantly negative: the logs' current and
+    /// angle disagree in sign (docs/identification.md#signs).
+    #[error(
+        "{terms} (logs: {logs}): friction, damping and inertia cannot be negative beyond their 95 % interval, so the current and the angle disagree in sign: likely a reversed current or angle sign (i_q_a or theta_fb_rad), swapped phases (A and B) or a sensor of reversed polarity; a positive i_q must turn the rotor towards positive theta_fb_rad: check by commanding a small positive i_q (or stepping theta_cmd forward in open loop) and watching theta_fb_rad grow, then fix the drive's or the logger's sign and log again (docs/identification.md#signs)"
+    )]
+    Unphysical {
+        /// The negative terms with their values and intervals, e.g. `Fs = -8.1 ± 0.1 mN·m`.
+        terms: String,
+        /// The logs fitted (their source names).
+        logs: String,
+    },
     /// Too few usable samples, or the terms cannot be separated at all. The cause is part
     /// of the message, not a `source`, so an error chain prints it once.
     #[error("least squares failed: {0}")]

@@ -10,11 +10,15 @@
 //!    encoder edges) and the smoothing corner follows the harmonics only.
 //! 4. [`plan`](mod@plan): the runs to record, with reasons.
 //!
+//! Before 2., [`balance`] refuses logs whose phase currents differ in amplitude (a sensor's
+//! gain error, which the fit would report as detent order 2).
+//!
 //! In open loop (`i_d = I_hold`, `i_q = 0` in the command frame) the torque is
 //! `Km·I_hold·sin δ` with `δ = θe_cmd − θe`; the fit sees the same equation as on a servo
 //! log, `J·dω/dt = Km·i_q − Σ A_k sin(kθe + φ_k) − Fs·sgn ω − D·ω`, with `i_q` the Park
 //! transform of the measured currents at the estimated angle.
 
+pub mod balance;
 pub mod flux;
 pub mod log;
 pub mod plan;
@@ -149,6 +153,9 @@ pub enum SensorlessError {
     /// No angle could be estimated from a log.
     #[error(transparent)]
     Angle(#[from] FluxError),
+    /// The phase currents' amplitudes differ (a sensor's gain is off).
+    #[error(transparent)]
+    Imbalance(#[from] balance::Imbalance),
     /// The fit failed.
     #[error(transparent)]
     Fit(#[from] crate::fit::FitError),
@@ -173,14 +180,15 @@ impl SensorlessFit {
     }
 }
 
-/// The whole route: [`estimate`] the angles with the base's winding, then
-/// [`crate::fit::fit`] with `fit` (normally [`fit_options`]).
+/// The whole route: [`balance::check`] the phase currents, [`estimate`] the angles with the
+/// base's winding, then [`crate::fit::fit`] with `fit` (normally [`fit_options`]).
 pub fn identify(
     logs: &[SensorlessLog],
     base: &Profile,
     fit: &FitOptions,
     o: &FluxOptions,
 ) -> Result<SensorlessFit, SensorlessError> {
+    balance::check(logs, base.motor.pole_pairs)?;
     let estimated = estimate(logs, &winding(base), o)?;
     let fit = crate::fit::fit(&estimated.logs, fit)?;
     Ok(SensorlessFit { estimated, fit })

@@ -211,3 +211,34 @@ fn an_absurd_current_or_voltage_names_its_line_and_column() {
     let e = parse_sensorless_log(csv.as_bytes(), "y.csv").unwrap_err().to_string();
     assert!(e.contains("line 2") && e.contains("i_b_a") && e.contains(" A"), "{e}");
 }
+
+/// Phase A's current logged ×1.1 (a sensor's gain error) is refused with the ratio, not
+/// fitted as an order-2 detent many times the true one; the simulator's own logs are
+/// balanced well inside the limit.
+#[test]
+fn a_phase_current_gain_error_is_refused_naming_the_ratio() {
+    use super::balance::{MAX_CURRENT_IMBALANCE, phase_amplitudes};
+    let m = patent();
+    let p = plan(&m, &SensorlessPlanOptions::default()).unwrap();
+    let logs: Vec<SensorlessLog> = p
+        .runs
+        .par_iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let rows = simulate_open_loop_run(&m, &m, r, 0.005, run_seed(1, i as u64)).unwrap();
+            SensorlessLog::from_rows(&rows, &r.name)
+        })
+        .collect();
+    for l in &logs {
+        let (a, b) = phase_amplitudes(l, 50).unwrap();
+        eprintln!("{}: amplitudes {a:.5} A, {b:.5} A, ratio − 1 = {:.2e}", l.source, a / b - 1.0);
+        assert!((a / b - 1.0).abs() < 0.1 * MAX_CURRENT_IMBALANCE);
+    }
+    let mut bad = logs.clone();
+    bad.iter_mut().for_each(|l| l.i_a_a.iter_mut().for_each(|i| *i *= 1.1));
+    let e = identify_sensorless(&bad, &m, &fit_options(&m, &[1, 2, 4]), &FluxOptions::default()).unwrap_err();
+    let text = e.to_string();
+    eprintln!("{text}");
+    assert!(matches!(e, super::SensorlessError::Imbalance(ref i) if (i.ratio - 1.1).abs() < 1e-3), "{text}");
+    assert!(text.contains("order 2") && text.contains("i_b_a ×") && text.contains("docs/sensorless.md"), "{text}");
+}
