@@ -46,4 +46,6 @@ pub use summary::SweepSummary;
 pub use sweep::{SweepRow, SweepSpec, linear_grid, sweep, sweep_with_table};
 
 #[cfg(test)]
+mod flux_tests;
+#[cfg(test)]
 mod tests;
