@@ -22,6 +22,9 @@ use stepdamp_core::limits::Num;
 /// aliasing (the motor-torque ripple has orders up to 16).
 pub const SAMPLES: usize = 128;
 
+/// Amplitudes below this (N·m) are reported as 0: the transform's rounding, not ripple.
+pub const ROUNDING_NM: f64 = 1e-12;
+
 /// Orders always reported (1–8), more where a part has higher ones.
 pub const MIN_REPORTED_ORDERS: u16 = 8;
 
@@ -30,9 +33,9 @@ pub const MIN_REPORTED_ORDERS: u16 = 8;
 pub struct RippleHarmonic {
     /// Order `k` of the electrical angle.
     pub order: u16,
-    /// Amplitude `A ≥ 0` in N·m.
+    /// Amplitude `A ≥ 0` in N·m ([`ROUNDING_NM`] and below are 0).
     pub amplitude_nm: f64,
-    /// Phase `φ` in rad, in `(−π, π]` (0 where the amplitude is below 1e-12 N·m).
+    /// Phase `φ` in rad, in `(−π, π]` (0 where the amplitude is 0).
     pub phase_rad: f64,
 }
 
@@ -81,7 +84,9 @@ fn to_harmonics(c: &[(f64, f64)]) -> Vec<RippleHarmonic> {
         .map(|(i, &(alpha, beta))| {
             // α cos kθ + β sin kθ = −A sin(kθ + φ) ⇔ β = −A cos φ, α = −A sin φ.
             let a = alpha.hypot(beta);
-            let phase = if a < 1e-12 { 0.0 } else { (-alpha).atan2(-beta) };
+            // Below a pN·m it is the transform's rounding (1e-17 N·m on a pure sine): 0.
+            // `+ 0.0` turns a phase of −0 into 0.
+            let (a, phase) = if a < ROUNDING_NM { (0.0, 0.0) } else { (a, (-alpha).atan2(-beta) + 0.0) };
             RippleHarmonic { order: i as u16 + 1, amplitude_nm: a, phase_rad: phase }
         })
         .collect()
@@ -117,7 +122,11 @@ fn current_coefficients(p: &Profile, i_d: f64, i_q: f64, orders: usize) -> (f64,
         }
     }
     let n = SAMPLES as f64;
-    (mean / n, c.into_iter().map(|(a, b)| (2.0 * a / n, 2.0 * b / n)).collect())
+    let clean = |(a, b): (f64, f64)| {
+        let (a, b) = (2.0 * a / n, 2.0 * b / n);
+        if a.hypot(b) < ROUNDING_NM { (0.0, 0.0) } else { (a, b) }
+    };
+    (mean / n, c.into_iter().map(clean).collect())
 }
 
 /// The total ripple of `p` at rotor-frame currents `i_d`, `i_q` (A), with its detent and
