@@ -67,6 +67,14 @@ attributes! {
 
 #[pymethods]
 impl PyProfile {
+    /// The ripple at rotor-frame currents `i_d_a`, `i_q_a` (A) as the JSON of the CLI's
+    /// `motor ripple --format json` (the library's `stepdamp_profile::Ripple`); the Python
+    /// package's `Profile.ripple` parses it.
+    fn ripple_json(&self, i_d_a: f64, i_q_a: f64) -> PyResult<String> {
+        let r = stepdamp_sim::profile::ripple(&self.inner, i_d_a, i_q_a).map_err(err)?;
+        serde_json::to_string(&r).map_err(err)
+    }
+
     /// A built-in preset by name (`stepdamp.PRESETS`).
     #[staticmethod]
     fn preset(name: &str) -> PyResult<Self> {

@@ -32,6 +32,7 @@ __all__ = [
     "linear_grid",
     "load_spec",
     "resonance",
+    "ripple",
     "simulate",
     "study",
     "sweep",
@@ -212,6 +213,16 @@ def identify(
     """
     args = [_log_arg(log, i) for i, log in enumerate(logs)]
     return _native.identify(args, base, [int(k) for k in orders], name, sensorless)
+
+
+def ripple(profile: Profile, i_d_a: float, i_q_a: float) -> dict:
+    """The total ripple torque of ``profile`` at rotor-frame currents ``i_d_a``, ``i_q_a`` (A),
+    as the CLI's ``motor ripple --format json``: ``harmonics`` (detent plus the ripple that
+    grows with current), ``detent`` and ``current`` apart, each a list of
+    ``{"order", "amplitude_nm", "phase_rad"}`` in the convention torque on the rotor
+    ``-A·sin(k·θe + φ)``, and ``mean_torque_nm``. Open loop at the holding current is
+    ``ripple(p, p.holding_current_a, 0.0)``; a servo at ``i_d = 0`` is ``ripple(p, 0.0, i_q)``."""
+    return json.loads(profile.ripple_json(float(i_d_a), float(i_q_a)))
 
 
 def resonance(profile: Profile) -> dict:

@@ -107,6 +107,23 @@ def test_resonance_gives_the_clis_speeds(cli):
         assert f"k={k}" in out and f"{w:.3f} rad/s" in out
 
 
+def test_ripple_equals_the_clis_json(cli, tmp_path):
+    p = Profile.from_toml(Profile.preset("patent-motor").to_toml().replace(
+        "\n[drive]", "\n[motor.flux]\nphase_b_gain = 0.03\n\n[[motor.flux.harmonic]]\norder = 3\n"
+        "ratio = 0.01\nphase_rad = 0.2\n\n[drive]", 1))
+    path = tmp_path / "real.toml"
+    path.write_text(p.to_toml())
+    r = stepdamp.ripple(p, 1.9, 0.0)
+    rc, out, _ = cli("motor", "ripple", "--motor", str(path), "--id", "1.9", "--iq", "0", "--format", "json")
+    assert rc == 0 and json.loads(out) == r
+    # 3·h3·Km·I at order 4 in the current part, the preset's 20 mN·m in the detent part.
+    k4 = [h for h in r["current"] if h["order"] == 4][0]
+    assert abs(k4["amplitude_nm"] - 3 * 0.01 * 0.3 * 1.9) < 1e-9
+    assert [h for h in r["detent"] if h["order"] == 4][0]["amplitude_nm"] == 0.02
+    with pytest.raises(stepdamp.StepdampError, match="--id 1e9 A"):
+        stepdamp.ripple(p, 1e9, 0.0)
+
+
 def _servo_logs(p):
     return [stepdamp.simulate(p, "servo", "off", w, 1.2, current_noise_a=0.005, seed=i)
             for i, w in enumerate([6.0, 11.0, -6.0, -11.0])]

@@ -25,6 +25,18 @@ pub enum Format {
     Json,
 }
 
+/// How a command that prints a table prints it.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TableFormat {
+    /// For people (the result type's `Display`).
+    #[default]
+    Text,
+    /// One JSON object (the result type's `Serialize`), for scripts.
+    Json,
+    /// CSV with a header row, units in the column names.
+    Csv,
+}
+
 /// Prints `value` as one line of JSON on standard output.
 pub fn print_json(value: &impl serde::Serialize) -> Result<()> {
     let text = serde_json::to_string(value).context("cannot serialise the result")?;

@@ -47,6 +47,10 @@ pub struct MotorSection {
     /// Simulator only: the controller's model is `coulomb_friction_nm`.
     #[serde(default, skip_serializing_if = "FrictionSection::is_default")]
     pub friction: FrictionSection,
+    /// `[motor.flux]` (optional): the magnet flux linkage's harmonics and the phases'
+    /// imbalance ([`crate::flux`]); a pure sine and equal phases when absent.
+    #[serde(default, skip_serializing_if = "crate::flux::FluxSection::is_default")]
+    pub flux: crate::flux::FluxSection,
 }
 
 /// `[motor.friction]`: which law the simulated plant's Coulomb friction `Fs`

@@ -28,17 +28,21 @@
 pub mod data;
 pub mod error;
 pub mod figures;
+pub mod flux;
 pub mod load;
 pub mod name;
 pub mod profile;
+pub mod ripple;
 pub mod runlog;
 mod validate;
 
 pub use data::{DetentTerm, DriveSection, EncoderSection, MotorSection, ProfileData, ServoSection, TopologyName};
 pub use error::ProfileError;
 pub use figures::{MotorFigures, MotorShow, ResonanceSpeed};
+pub use flux::{FluxHarmonic, FluxSection, FluxShape};
 pub use load::{MAX_PROFILE_BYTES, MotorRef, PRESETS, preset_text};
 pub use profile::{Profile, TYPICAL_DETENT_ORDERS};
+pub use ripple::{Ripple, RippleError, RippleHarmonic, ripple};
 pub use runlog::LogRow;
 pub use stepdamp_core::limits;
 

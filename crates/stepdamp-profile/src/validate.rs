@@ -140,9 +140,33 @@ fn check_simulator(p: &ProfileData, origin: &str) -> Result<(), ProfileError> {
     for (i, &g) in d.current_gain_error.iter().enumerate() {
         within(origin, &format!("drive.current_gain_error[{i}]"), g, &sl::CURRENT_GAIN_ERROR)?;
     }
+    check_flux(p, origin)?;
     let e = &p.encoder;
     within(origin, sl::ECCENTRICITY_RAD.key, e.eccentricity_rad, &sl::ECCENTRICITY_RAD)?;
     within(origin, sl::ECCENTRICITY_PHASE_RAD.key, e.eccentricity_phase_rad, &sl::ECCENTRICITY_PHASE_RAD)?;
+    Ok(())
+}
+
+/// `[motor.flux]`: odd orders 3 to 15, each once, ratios and phases and the phase-b gain
+/// within [`crate::flux::flux_limits`].
+fn check_flux(p: &ProfileData, origin: &str) -> Result<(), ProfileError> {
+    use crate::flux::{MAX_FLUX_ORDER, flux_limits as fl};
+    let f = &p.motor.flux;
+    within(origin, fl::PHASE_B_GAIN.key, f.phase_b_gain, &fl::PHASE_B_GAIN)?;
+    for (i, h) in f.harmonics.iter().enumerate() {
+        let key = |k: &str| format!("motor.flux.harmonic[{i}].{k}");
+        if !(3..=MAX_FLUX_ORDER).contains(&h.order) || h.order % 2 == 0 {
+            let why = format!(
+                "must be odd, 3 to {MAX_FLUX_ORDER}: a magnet's flux has odd harmonics, and the fundamental is Km"
+            );
+            return Err(invalid(origin, &key("order"), h.order.to_string(), &why));
+        }
+        if f.harmonics[..i].iter().any(|o| o.order == h.order) {
+            return Err(invalid(origin, &key("order"), h.order.to_string(), "this order is listed twice"));
+        }
+        within(origin, &key("ratio"), h.ratio, &fl::RATIO)?;
+        within(origin, &key("phase_rad"), h.phase_rad, &fl::PHASE_RAD)?;
+    }
     Ok(())
 }
 

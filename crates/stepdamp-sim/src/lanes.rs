@@ -25,6 +25,7 @@
 
 use crate::friction::FrictionLaw;
 use crate::plant::{PlantParams, PlantState, friction_substeps};
+use stepdamp_profile::flux::FluxShape;
 
 mod angles;
 pub use angles::{NUDGE_LIMIT, ROTATION_LIMIT, SIN_COS_POLY_LIMIT, sin_cos};
@@ -82,6 +83,52 @@ struct Kernel {
     /// running power `e^{jmθe}` or multiplies it by `e^{jθe}`, then adds the term of the
     /// order reached if there is one `(present, A cos φ, A sin φ)`.
     steps: Vec<(Step, bool, f64, f64)>,
+    /// The flux linkage's shape beyond the pure sine, `None` for the patent's motor.
+    flux: Option<FluxKernel>,
+}
+
+/// The flux shape sums `S_a`, `S_b` of [`stepdamp_profile::flux`] prepared for the lanes: the
+/// harmonics dense by odd order from 3 (`(ca, sa, cb, sb)`, zeros where absent) and `1 + g`.
+#[derive(Clone, Debug, PartialEq)]
+struct FluxKernel {
+    odd: Vec<[f64; 4]>,
+    b_gain: f64,
+}
+
+impl FluxKernel {
+    fn new(f: &FluxShape) -> Self {
+        let highest = f.terms().iter().map(|t| usize::from(t.0)).max().unwrap_or(1);
+        let mut odd = vec![[0.0; 4]; highest.saturating_sub(1) / 2];
+        for &(n, [ca, sa], [cb, sb]) in f.terms().iter().filter(|t| t.0 >= 3 && t.0 % 2 == 1) {
+            let e = &mut odd[usize::from(n - 3) / 2];
+            *e = [e[0] + ca, e[1] + sa, e[2] + cb, e[3] + sb];
+        }
+        FluxKernel { odd, b_gain: f.b_gain() }
+    }
+
+    /// `(S_a, S_b)` per lane from `sin θe`, `cos θe`: the fundamental `(sin θe, −cos θe)`
+    /// plus the odd harmonics, `e^{j(n+2)θe} = e^{jnθe}·e^{j2θe}`.
+    #[inline(always)]
+    fn shape_sums<const N: usize>(&self, s: &[f64; N], c: &[f64; N]) -> ([f64; N], [f64; N]) {
+        let mut sa = *s;
+        let mut sb = c.map(|c| -c);
+        let (mut s2, mut c2) = ([0.0; N], [0.0; N]);
+        for l in 0..N {
+            s2[l] = 2.0 * (s[l] * c[l]);
+            c2[l] = c[l] * c[l] - s[l] * s[l];
+        }
+        let (mut sn, mut cn) = (*s, *c);
+        for &[ca, sa_, cb, sb_] in &self.odd {
+            for l in 0..N {
+                let next = sn[l] * c2[l] + cn[l] * s2[l];
+                cn[l] = cn[l] * c2[l] - sn[l] * s2[l];
+                sn[l] = next;
+                sa[l] += ca * sn[l] + sa_ * cn[l];
+                sb[l] += cb * sn[l] + sb_ * cn[l];
+            }
+        }
+        (sa, sb)
+    }
 }
 
 /// One step of the detent ladder.
@@ -120,6 +167,7 @@ impl Kernel {
             law: p.friction,
             first,
             steps,
+            flux: p.flux.as_ref().map(FluxKernel::new),
         }
     }
 }
@@ -202,11 +250,40 @@ impl<const N: usize> Integrator<N> {
         let det = self.detent_series(s, c);
         let k = &self.k;
         let mut out = [0.0; N];
+        if let Some(f) = &k.flux {
+            let (sa, sb) = f.shape_sums(s, c);
+            for l in 0..N {
+                let tau_m = -k.km * (x.i_a[l] * sa[l] + f.b_gain * x.i_b[l] * sb[l]);
+                out[l] = tau_m - det[l] - k.d * x.omega[l] + load[l];
+            }
+            return out;
+        }
         for l in 0..N {
             let tau_m = k.km * (-x.i_a[l] * s[l] + x.i_b[l] * c[l]);
             out[l] = tau_m - det[l] - k.d * x.omega[l] + load[l];
         }
         out
+    }
+
+    /// The windings' back-EMF terms `(Km·ω·S_a, (1+g)·Km·ω·S_b)` per lane (the winding
+    /// equations are `L·di/dt = v − R·i + these`), for a flux shape.
+    #[inline(always)]
+    fn flux_emf(f: &FluxKernel, km: f64, x: &StateLanes<N>, s: &[f64; N], c: &[f64; N]) -> ([f64; N], [f64; N]) {
+        let (sa, sb) = f.shape_sums(s, c);
+        let (mut ea, mut eb) = ([0.0; N], [0.0; N]);
+        for l in 0..N {
+            ea[l] = km * x.omega[l] * sa[l];
+            eb[l] = f.b_gain * km * x.omega[l] * sb[l];
+        }
+        (ea, eb)
+    }
+
+    /// Every torque on the rotor but Coulomb friction at the lanes' states, with no load
+    /// (the static torque a test compares with the closed forms).
+    #[cfg(test)]
+    pub(crate) fn static_torque(&mut self, x: &StateLanes<N>) -> [f64; N] {
+        let (s, c) = sin_cos_lanes(&x.theta.map(|t| self.k.nr * t));
+        self.non_friction_torque(x, &s, &c, &[0.0; N])
     }
 
     /// Time derivative of the lanes for winding voltages `va`, `vb` with `s`, `c` the
@@ -226,21 +303,32 @@ impl<const N: usize> Integrator<N> {
         let others = self.non_friction_torque(x, s, c, load);
         let k = &self.k;
         let mut d = StateLanes { i_a: [0.0; N], i_b: [0.0; N], theta: x.omega, omega: [0.0; N] };
+        // The windings' back-EMF terms: `v − R·i + e` with `e = (Km·ω·sin θe, −Km·ω·cos θe)`
+        // for the pure sine (`a + (−b)` is `a − b` exactly: the same bits as before).
+        let (ea, eb) = match &k.flux {
+            Some(f) => Self::flux_emf(f, k.km, x, s, c),
+            None => {
+                let (mut ea, mut eb) = ([0.0; N], [0.0; N]);
+                for l in 0..N {
+                    ea[l] = k.km * x.omega[l] * s[l];
+                    eb[l] = -(k.km * x.omega[l] * c[l]);
+                }
+                (ea, eb)
+            }
+        };
+        for l in 0..N {
+            d.i_a[l] = (va[l] - k.r * x.i_a[l] + ea[l]) * k.inv_l;
+            d.i_b[l] = (vb[l] - k.r * x.i_b[l] + eb[l]) * k.inv_l;
+        }
         if k.law != FrictionLaw::Karnopp {
             // A smooth law: a plain function of the speed, no stick state.
             for l in 0..N {
-                let w = x.omega[l];
-                d.i_a[l] = (va[l] - k.r * x.i_a[l] + k.km * w * s[l]) * k.inv_l;
-                d.i_b[l] = (vb[l] - k.r * x.i_b[l] - k.km * w * c[l]) * k.inv_l;
-                d.omega[l] = (others[l] - k.law.friction_nm(k.fs, w)) * k.inv_j;
+                d.omega[l] = (others[l] - k.law.friction_nm(k.fs, x.omega[l])) * k.inv_j;
             }
             return d;
         }
         for l in 0..N {
-            let w = x.omega[l];
-            d.i_a[l] = (va[l] - k.r * x.i_a[l] + k.km * w * s[l]) * k.inv_l;
-            d.i_b[l] = (vb[l] - k.r * x.i_b[l] - k.km * w * c[l]) * k.inv_l;
-            let o = others[l];
+            let (w, o) = (x.omega[l], others[l]);
             let sliding = o - k.fs.copysign(w);
             let breaking = o - k.fs.copysign(o);
             // Stuck (inside the band, friction balances the rest): no acceleration.

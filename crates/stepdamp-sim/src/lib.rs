@@ -50,4 +50,6 @@ pub use summary::SweepSummary;
 pub use sweep::{CheckedSweep, SweepRow, SweepSpec, derived_seed, linear_grid, sweep};
 
 #[cfg(test)]
+mod flux_tests;
+#[cfg(test)]
 mod tests;

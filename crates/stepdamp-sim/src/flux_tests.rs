@@ -1,0 +1,115 @@
+//! The plant with a real motor's flux linkage (docs/design.md#real-motors-flux-harmonics):
+//! energy, the static torque against the closed form, and today's plant without it.
+
+use crate::lanes::{Integrator, StateLanes};
+use crate::plant::tests::energy_imbalance_of_a_driven_run;
+use crate::plant::{PlantParams, PlantState};
+use crate::profile::Profile;
+use stepdamp_profile::flux::{FluxHarmonic, FluxSection, FluxShape};
+
+/// Flux harmonics and an imbalance at the top of what measured motors show.
+fn real_flux() -> FluxSection {
+    FluxSection {
+        phase_b_gain: 0.04,
+        harmonics: vec![
+            FluxHarmonic { order: 3, ratio: 0.015, phase_rad: 0.6 },
+            FluxHarmonic { order: 5, ratio: 0.006, phase_rad: -1.2 },
+        ],
+    }
+}
+
+fn real_motor() -> Profile {
+    Profile::preset("patent-motor").unwrap().edited("test", |d| d.motor.flux = real_flux()).unwrap()
+}
+
+#[test]
+fn energy_closes_with_flux_harmonics_and_phase_imbalance() {
+    let p = PlantParams::from_profile(&real_motor());
+    assert!(p.flux.is_some());
+    let (err, e_in) = energy_imbalance_of_a_driven_run(p);
+    assert!(err.abs() < 1e-6 * e_in.abs(), "in {e_in} J, imbalance {err} J");
+}
+
+#[test]
+fn back_emf_power_equals_torque_times_speed_with_flux() {
+    let p = PlantParams::from_profile(&real_motor());
+    for n in 0..500 {
+        let f = f64::from(n);
+        let x = PlantState {
+            i_a: (0.37 * f).sin() * 3.0,
+            i_b: (0.11 * f).cos() * 2.0,
+            theta: 0.013 * f,
+            omega: 40.0 - 0.2 * f,
+        };
+        let (ea, eb) = p.back_emf(&x);
+        let pm = p.motor_torque(&x) * x.omega;
+        assert!((ea * x.i_a + eb * x.i_b - pm).abs() <= 1e-12 * (1.0 + pm.abs()));
+    }
+}
+
+/// The integrator's motor torque at rest (no detent, no friction, no load): what the
+/// simulated rotor feels.
+fn simulated_static_torque(p: &PlantParams, theta_e: f64, i_a: f64, i_b: f64) -> f64 {
+    let mut q = p.clone();
+    q.detent.clear();
+    q.d = 0.0;
+    q.fs = 0.0;
+    let mut it = Integrator::<1>::new(&q);
+    let x = StateLanes::from_states(&[PlantState { i_a, i_b, theta: theta_e / q.nr, omega: 0.0 }]);
+    it.static_torque(&x)[0]
+}
+
+#[test]
+fn simulated_static_torque_is_the_closed_form_of_the_current_proportional_ripple() {
+    // docs/design.md: in open loop at current I and load angle δ = θc − θe,
+    // τ_m = Km·I·sin δ − 3h3·Km·I·sin(4θe + a3 + δ) − 5h5·Km·I·sin(4θe + a5 − δ)
+    //       + (g·Km·I/2)·[sin(2θe + δ) + sin δ]      to first order in h3, h5, g.
+    let prof = real_motor();
+    let p = PlantParams::from_profile(&prof);
+    let shape = FluxShape::new(&prof.motor.flux);
+    let (km, g) = (p.km, prof.motor.flux.phase_b_gain);
+    let (h3, a3, h5, a5) = (0.015, 0.6, 0.006, -1.2);
+    // The second-order terms the closed form leaves out: g times the harmonics.
+    let second_order = |i: f64| g * (3.0 * h3 + 5.0 * h5) * km * i;
+    let mut worst: f64 = 0.0;
+    for (i, delta) in [(1.9, 0.0), (1.9, 0.3), (0.95, -0.5), (1.5, 1.2)] {
+        for j in 0..97 {
+            let te = 0.067 * f64::from(j) - 3.0;
+            let tc = te + delta;
+            let (i_a, i_b) = (i * tc.cos(), i * tc.sin());
+            let sim = simulated_static_torque(&p, te, i_a, i_b);
+            let closed = km * i * delta.sin()
+                - 3.0 * h3 * km * i * (4.0 * te + a3 + delta).sin()
+                - 5.0 * h5 * km * i * (4.0 * te + a5 - delta).sin()
+                + g * km * i / 2.0 * ((2.0 * te + delta).sin() + delta.sin());
+            assert!((sim - closed).abs() <= 1.5 * second_order(i), "I {i} δ {delta} θe {te}: {sim} vs {closed}");
+            worst = worst.max((sim - closed).abs() / second_order(i));
+            // And exactly the profile's own formula (one home: stepdamp_profile::flux).
+            assert!((sim - shape.torque_nm(km, te, i_a, i_b)).abs() < 1e-12);
+        }
+    }
+    // The closed form is not exact with g and the harmonics together, and the bound is
+    // not loose: the worst difference uses a good part of it.
+    assert!(worst > 0.2, "worst {worst} of the second-order bound");
+}
+
+#[test]
+fn the_flux_path_with_a_pure_sine_integrates_bit_for_bit_as_todays_plant() {
+    // `[motor.flux]` absent → `flux: None` (today's code); a shape that is a pure sine goes
+    // through the flux path, which must then give the same bits.
+    let today = PlantParams::from_profile(&Profile::preset("patent-motor").unwrap());
+    assert!(today.flux.is_none());
+    let mut sine = today.clone();
+    sine.flux = Some(FluxShape::new(&FluxSection::default()));
+    let h = 5e-5;
+    let band = today.stick_band(h);
+    let (mut a, mut b) = (PlantState::default(), PlantState::default());
+    for n in 0..4000 {
+        let ph = 0.002 * f64::from(n) * f64::from(n) * h;
+        let (va, vb) = (4.0 * ph.cos(), 4.0 * ph.sin());
+        a = today.rk4(&a, va, vb, h, band);
+        b = sine.rk4(&b, va, vb, h, band);
+        assert_eq!(a, b, "step {n}");
+    }
+    assert!(a.omega.abs() > 0.1, "the rotor moved: {a:?}");
+}
