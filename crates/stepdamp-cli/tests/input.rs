@@ -21,6 +21,8 @@ fn assert_refused(dir: &Path, args: &[&str], needles: &[&str]) {
     assert!(!err.contains("unexpected argument"), "{args:?}: {err}");
     for n in needles {
         assert!(err.contains(n), "{args:?}: '{n}' not in {err}");
+        // Said once: an error chain must not repeat its cause.
+        assert_eq!(err.matches(n).count(), 1, "{args:?}: '{n}' said twice in {err}");
     }
     assert!(!dir.join("out").exists(), "{args:?} created out/");
 }

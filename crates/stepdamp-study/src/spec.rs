@@ -246,12 +246,12 @@ pub const MAX_VARIANTS: u64 = 10_000_000;
 #[derive(Debug, thiserror::Error)]
 pub enum StudyError {
     /// The spec file could not be read.
-    #[error("{path}: cannot read: {source}")]
+    #[error("{path}: cannot read: {reason}")]
     Read {
         /// The file.
         path: String,
-        /// Why.
-        source: std::io::Error,
+        /// Why (not a `source`: the message says it, and an error chain would say it twice).
+        reason: std::io::Error,
     },
     /// Not valid TOML or not the spec's shape, or a value out of range.
     #[error("{origin}: {message}")]
@@ -307,7 +307,7 @@ impl Study {
     /// works, an endless input is refused).
     pub fn load(path: &Path) -> Result<Study, StudyError> {
         let text = stepdamp_out::input::read_to_string_bounded(path, MAX_SPEC_BYTES)
-            .map_err(|source| StudyError::Read { path: path.display().to_string(), source })?;
+            .map_err(|reason| StudyError::Read { path: path.display().to_string(), reason })?;
         let dir = path.parent().unwrap_or(Path::new("."));
         Study::from_toml_str(&text, &path.display().to_string(), dir)
     }
