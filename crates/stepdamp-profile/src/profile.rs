@@ -133,6 +133,32 @@ impl Profile {
             .collect()
     }
 
+    /// The harmonics the controller feeds forward in `mode` (`f32`): the detent, except for a
+    /// motor with a `[motor.flux]` section in open loop, where the ripple that grows with the
+    /// current is there too: the total ripple of [`crate::ripple`] at the holding current and
+    /// no load (`i_d = I_hold`, `i_q = 0`; docs/design.md#real-motors-flux-harmonics). In
+    /// servo at `i_d = 0` the current part is proportional to the torque current and is not
+    /// fed forward (yet). A profile without the section gets [`Profile::harmonics`] unchanged.
+    pub fn controller_harmonics(&self, mode: Mode) -> Vec<Harmonic> {
+        if self.motor.flux.is_default() || mode != Mode::OpenLoop {
+            return self.harmonics();
+        }
+        // Within the current limit by validation (I_hold ≤ I_limit), so this cannot fail.
+        match crate::ripple::ripple(self, self.drive.holding_current_a, 0.0) {
+            Ok(r) => r
+                .harmonics
+                .iter()
+                .filter(|h| h.amplitude_nm > 0.0)
+                .map(|h| Harmonic {
+                    order: h.order,
+                    amplitude_nm: h.amplitude_nm as f32,
+                    phase_rad: h.phase_rad as f32,
+                })
+                .collect(),
+            Err(_) => self.harmonics(),
+        }
+    }
+
     /// The controller's parameters for `mode` and `compensation`; `detent` is
     /// [`Profile::harmonics`] (borrowed by the result).
     pub fn params<'a>(&self, detent: &'a [Harmonic], mode: Mode, compensation: Compensation) -> Params<'a> {
@@ -172,7 +198,7 @@ impl Profile {
         compensation: Compensation,
         table: Option<&CorrectionTable>,
     ) -> Result<Config, ConfigError> {
-        let detent = self.harmonics();
+        let detent = self.controller_harmonics(mode);
         let params = self.params(&detent, mode, compensation);
         match table {
             Some(t) => Config::with_table(&params, t),

@@ -126,7 +126,8 @@ fn current_coefficients(p: &Profile, i_d: f64, i_q: f64, orders: usize) -> (f64,
         let (a, b) = (2.0 * a / n, 2.0 * b / n);
         if a.hypot(b) < ROUNDING_NM { (0.0, 0.0) } else { (a, b) }
     };
-    (mean / n, c.into_iter().map(clean).collect())
+    // `+ 0.0`: a mean of −0 prints as 0.
+    (mean / n + 0.0, c.into_iter().map(clean).collect())
 }
 
 /// The total ripple of `p` at rotor-frame currents `i_d`, `i_q` (A), with its detent and
@@ -303,6 +304,27 @@ mod tests {
         // The preset's detent: orders 4, 2, 1 at 20, 12, 8 mN·m.
         assert!((full.detent[3].amplitude_nm - 0.020).abs() < 1e-15);
         assert!(full.harmonics.len() >= usize::from(MIN_REPORTED_ORDERS));
+    }
+
+    #[test]
+    fn the_controller_feeds_forward_the_ripple_at_the_holding_current_in_open_loop_only() {
+        use stepdamp_core::Mode;
+        let plain = Profile::preset("patent-motor").unwrap();
+        for mode in [Mode::OpenLoop, Mode::Servo] {
+            assert_eq!(plain.controller_harmonics(mode), plain.harmonics());
+        }
+        let p = motor(FluxSection {
+            phase_b_gain: 0.03,
+            harmonics: vec![FluxHarmonic { order: 3, ratio: 0.012, phase_rad: 0.4 }],
+        });
+        assert_eq!(p.controller_harmonics(Mode::Servo), p.harmonics());
+        let r = ripple(&p, p.drive.holding_current_a, 0.0).unwrap();
+        let ol = p.controller_harmonics(Mode::OpenLoop);
+        let want: Vec<(u16, f32)> =
+            r.harmonics.iter().filter(|h| h.amplitude_nm > 0.0).map(|h| (h.order, h.amplitude_nm as f32)).collect();
+        assert_eq!(ol.iter().map(|h| (h.order, h.amplitude_nm)).collect::<Vec<_>>(), want);
+        // Order 4 carries the detent and 3·h3·Km·I_hold.
+        assert!(ol.iter().any(|h| h.order == 4 && h.amplitude_nm > 0.03));
     }
 
     #[test]
