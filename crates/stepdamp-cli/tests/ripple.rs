@@ -81,3 +81,18 @@ fn ripple_text_names_the_operating_point_and_refuses_currents_beyond_the_limit()
     assert!(err.contains("--id 1e9 A: must be in [-"), "{err}");
     assert_eq!(err.lines().filter(|l| !l.is_empty()).count(), 1, "{err}");
 }
+
+#[test]
+fn a_flux_profile_exported_at_the_run_current_cancels_the_ripple_that_grows_with_it() {
+    // docs/profiles/patent-motor-real.toml: at 1.9 A the 4th-order ripple is 47 mN·m, 27 of
+    // them from the flux harmonics. The exported table carries the total ripple at the run
+    // current; the prediction simulates the motor with its flux.
+    let dir = tempfile::tempdir().unwrap();
+    let motor = concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/profiles/patent-motor-real.toml");
+    let out = dir.path().join("x.gcode");
+    let o = stepdamp(&["export", "prusa", "--motor", motor, "--current", "1.9", "--out", out.to_str().unwrap()]);
+    let text = stdout(&o);
+    let line = text.lines().find(|l| l.trim_start().starts_with("order  4")).expect("order 4 predicted");
+    let db: f64 = line.split('(').nth(1).unwrap().split(" dB").next().unwrap().parse().unwrap();
+    assert!(db >= 20.0, "order 4: {db} dB lower, expected at least 20: {text}");
+}

@@ -20,7 +20,12 @@ pub struct Correction {
 }
 
 impl Correction {
-    /// From a profile; `current_a` overrides the profile's holding current.
+    /// From a profile; `current_a` overrides the profile's holding current. The terms are the
+    /// detent's, except for a profile with a `[motor.flux]` section exported at a run current
+    /// (`current_a` given: an open-loop drive holding that current): then they are the total
+    /// ripple at that current and no load, detent plus the part that grows with the current
+    /// (`stepdamp_profile::ripple`, docs/design.md#real-motors-flux-harmonics). Without a run
+    /// current (SimpleFOC's servo at `i_d = 0`) the current part is not carried.
     pub fn from_profile(p: &Profile, current_a: Option<f64>) -> Result<Self, ExportError> {
         let i = current_a.unwrap_or(p.drive.holding_current_a);
         if !(i.is_finite() && i > 0.0) {
@@ -29,17 +34,18 @@ impl Correction {
         if !(p.motor.km_nm_per_a.is_finite() && p.motor.km_nm_per_a > 0.0) {
             return Err(ExportError::Invalid(format!("motor.km_nm_per_a = {}: must be > 0", p.motor.km_nm_per_a)));
         }
-        Ok(Correction {
-            name: p.name.clone(),
-            terms: p
-                .motor
-                .detent
+        let km = p.motor.km_nm_per_a;
+        let terms = match current_a {
+            Some(i) if !p.motor.flux.is_default() => stepdamp_sim::profile::ripple(p, i, 0.0)
+                .map_err(|e| ExportError::Invalid(e.to_string()))?
+                .harmonics
                 .iter()
-                .map(|h| (h.order, h.amplitude_nm / p.motor.km_nm_per_a, h.phase_rad))
+                .filter(|h| h.amplitude_nm > 0.0)
+                .map(|h| (h.order, h.amplitude_nm / km, h.phase_rad))
                 .collect(),
-            holding_current_a: i,
-            km_nm_per_a: p.motor.km_nm_per_a,
-        })
+            _ => p.motor.detent.iter().map(|h| (h.order, h.amplitude_nm / km, h.phase_rad)).collect(),
+        };
+        Ok(Correction { name: p.name.clone(), terms, holding_current_a: i, km_nm_per_a: p.motor.km_nm_per_a })
     }
 
     /// The compensating current at `θe`, A.
