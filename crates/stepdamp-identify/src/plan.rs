@@ -128,15 +128,7 @@ impl std::fmt::Display for Plan {
             self.servo_bandwidth_hz, self.velocity_filter_hz
         )?;
         writeln!(f, "  why: {}", self.servo_reason)?;
-        writeln!(f, "runs:")?;
-        for r in &self.runs {
-            writeln!(
-                f,
-                "  {:<28} {:+8.4} rad/s  {:6.2} s (standstill {:.2} s, ramp {:.2} s)",
-                r.name, r.speed_rad_s, r.duration_s, r.dwell_s, r.ramp_s
-            )?;
-            writeln!(f, "      why: {}", r.reason)?;
-        }
+        write_runs(f, &self.runs)?;
         for n in &self.notes {
             writeln!(f, "note: {n}")?;
         }
@@ -150,6 +142,21 @@ impl std::fmt::Display for Plan {
 
 /// The columns of [`runs_csv`].
 pub const RUNS_CSV_HEADER: &str = "run,speed_rad_s,duration_s,standstill_s,ramp_s";
+
+/// The plan's runs as the text of `identify plan` prints them, each with its reason (both
+/// routes' plans).
+pub(crate) fn write_runs(f: &mut std::fmt::Formatter<'_>, runs: &[PlannedRun]) -> std::fmt::Result {
+    writeln!(f, "runs:")?;
+    for r in runs {
+        writeln!(
+            f,
+            "  {:<28} {:+8.4} rad/s  {:6.2} s (standstill {:.2} s, ramp {:.2} s)",
+            r.name, r.speed_rad_s, r.duration_s, r.dwell_s, r.ramp_s
+        )?;
+        writeln!(f, "      why: {}", r.reason)?;
+    }
+    Ok(())
+}
 
 /// One CSV row per run under [`RUNS_CSV_HEADER`] (`identify plan --format csv`), so a
 /// script or another drive can perform exactly the plan: a run starts at rest holding the

@@ -93,15 +93,7 @@ impl std::fmt::Display for SensorlessPlan {
             "open-loop natural frequency from the base profile: {:.1} Hz (J from the base: a guess is enough)",
             self.natural_rad_s / TAU
         )?;
-        writeln!(f, "runs:")?;
-        for r in &self.runs {
-            writeln!(
-                f,
-                "  {:<28} {:+8.4} rad/s  {:6.2} s (standstill {:.2} s, ramp {:.2} s)",
-                r.name, r.speed_rad_s, r.duration_s, r.dwell_s, r.ramp_s
-            )?;
-            writeln!(f, "      why: {}", r.reason)?;
-        }
+        crate::plan::write_runs(f, &self.runs)?;
         write!(
             f,
             "total {:.1} s of logging; record t_s, theta_cmd_rad, i_a_a, i_b_a, v_a_v, v_b_v every control period from t = 0 (v: the mean winding voltage actually applied over the period)",
