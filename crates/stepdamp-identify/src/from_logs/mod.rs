@@ -75,8 +75,9 @@ impl IdentifyOptions {
         }
     }
 
-    /// The encoder route's fit options for `base`.
-    fn encoder_fit(&self, base: &Profile) -> FitOptions {
+    /// The encoder route's fit options for `base` (what [`identify`] fits encoder logs with,
+    /// and what refinement refits with).
+    pub fn encoder_fit_options(&self, base: &Profile) -> FitOptions {
         let mut fo = FitOptions::for_profile(base, &self.orders);
         fo.effort = self.effort;
         fo.inertia = self.inertia;
@@ -260,7 +261,7 @@ pub fn identify(inputs: &[LogSource], base: &Profile, o: &IdentifyOptions) -> Re
     let name = o.name.clone().unwrap_or_else(|| format!("{}-{DEFAULT_NAME_SUFFIX}", base.name));
     let (result, model, current_offset_a) = match &logs {
         Logs::Encoder(l) => {
-            let f = fit(l, &o.encoder_fit(base))?;
+            let f = fit(l, &o.encoder_fit_options(base))?;
             let model = Model::from_fit(&f);
             let mut report = FitReport::new(&base.name, f);
             if o.feed_forward_on {
