@@ -1,5 +1,5 @@
 //! Identification from run logs in one call, the entry the CLI (`stepdamp identify --log …`)
-//! and Python (`stepdamp.identify`) both use (docs/identification.md#what-the-fit-reads):
+//! and Python (`stepdamp.identify`) both use (docs/files.md#run-log-csv):
 //! read every log once ([`read_logs`]), take the route its headers call for ([`Route`]:
 //! encoder logs have `theta_fb_rad`, sensorless ones do not; or the route forced by
 //! [`IdentifyOptions::route`]), fit, and return one [`IdentifyReport`] with all that is

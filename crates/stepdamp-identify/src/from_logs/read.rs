@@ -1,7 +1,7 @@
 //! Reading a set of run logs for [`super::identify`]: each source opened once and read in
 //! one pass (the header, then the rows, from the same reader), the route taken from the
 //! headers, and a log given twice refused before anything is opened
-//! (docs/identification.md#what-the-fit-reads).
+//! (docs/files.md#run-log-csv).
 
 use super::IdentifyError;
 use crate::log::columns::ColumnReader;
