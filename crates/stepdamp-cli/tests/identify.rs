@@ -381,3 +381,13 @@ fn a_log_given_twice_is_refused_naming_it() {
     }
     assert!(!out.exists());
 }
+
+#[test]
+fn a_missing_log_is_one_line_naming_it_with_the_reason_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let (log, out) = (dir.path().join("none.csv"), dir.path().join("id.toml"));
+    let (l, o) = (log.to_str().unwrap(), out.to_str().unwrap());
+    let e = error(&stepdamp_with(&["identify", "--log", l, "--motor", "patent-motor", "--out", o], Stdio::null()));
+    assert!(e.starts_with(&format!("error: {l}: cannot read: ")), "{e}");
+    assert_eq!(e.matches("os error").count(), 1, "{e}");
+}

@@ -148,9 +148,10 @@ pub enum IdentifyError {
     /// A servo bandwidth that is not a positive number of Hz.
     #[error("--servo-bandwidth {0}: must be a positive number of Hz")]
     ServoBandwidth(f64),
-    /// A log could not be read.
-    #[error(transparent)]
-    Log(#[from] LogError),
+    /// A log could not be read. Its message is the whole line (an I/O error's text
+    /// included), so it is not given as a source as well.
+    #[error("{0}")]
+    Log(LogError),
     /// The encoder route's fit failed.
     #[error(transparent)]
     Fit(#[from] FitError),
@@ -160,6 +161,12 @@ pub enum IdentifyError {
     /// The identified profile is not valid.
     #[error(transparent)]
     Profile(#[from] ProfileError),
+}
+
+impl From<LogError> for IdentifyError {
+    fn from(e: LogError) -> Self {
+        IdentifyError::Log(e)
+    }
 }
 
 /// The route's own report.

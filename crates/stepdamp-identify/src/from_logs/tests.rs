@@ -138,7 +138,10 @@ fn the_first_error_in_the_order_given_wins() {
     let good = write(dir.path(), "good.csv", &encoder_csv());
     let bad = write(dir.path(), "bad.csv", "t_s,theta_fb_rad,i_q_a\n0,0,x\n");
     let missing = dir.path().join("missing.csv");
-    let e = read_logs(&[path(&good), path(&missing), path(&bad)], 50, None).unwrap_err().to_string();
+    let e = read_logs(&[path(&good), path(&missing), path(&bad)], 50, None).unwrap_err();
+    // One line: the I/O error's text once, not again as a source.
+    assert!(std::error::Error::source(&e).is_none(), "{e:?}");
+    let e = e.to_string();
     assert!(e.contains("missing.csv") && e.contains("cannot read"), "{e}");
     let e = read_logs(&[path(&bad), path(&missing)], 50, None).unwrap_err().to_string();
     assert!(e.contains("bad.csv") && e.contains("line 2"), "{e}");
