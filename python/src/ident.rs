@@ -1,50 +1,21 @@
-//! `identify`: detent harmonics and friction from servo-mode run logs.
+//! `identify`: detent harmonics and friction from run logs, through the library's one entry
+//! (`stepdamp_identify::from_logs::identify`, the CLI's too): the route is the library's
+//! choice.
 
 use crate::err;
 use crate::profile::PyProfile;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use stepdamp_identify::fit::{Estimate, FitOptions, fit};
-use stepdamp_identify::log::{LogOptions, RunLog, parse_log, read_log};
-use stepdamp_identify::model::Model;
-use stepdamp_identify::sensorless::flux::FluxOptions;
-use stepdamp_identify::sensorless::log::{LogKind, SensorlessLog, log_kind, parse_sensorless_log, read_sensorless_log};
-use stepdamp_identify::sensorless::{self, SensorlessFit};
+use stepdamp_identify::fit::Estimate;
+use stepdamp_identify::from_logs::{IdentifyOptions, LogSource, Route, identify as identify_logs};
 
-/// The route a log calls for: sensorless when its header has no `theta_fb_rad`.
-fn kind_of(kind: &str, a: &str) -> Result<LogKind, String> {
+/// A log as the Python wrapper passes it: `("path", path)` or `("csv", text, source)`.
+fn source(kind: &str, a: &str, b: Option<&str>) -> Result<LogSource, String> {
     match kind {
-        "path" => log_kind(std::path::Path::new(a)).map_err(|e| e.to_string()),
-        _ => {
-            let header = a.lines().next().unwrap_or("");
-            Ok(if header.split(',').any(|c| c.trim().trim_matches('"') == "theta_fb_rad") {
-                LogKind::Encoder
-            } else {
-                LogKind::Sensorless
-            })
-        }
+        "path" => Ok(LogSource::Path(a.into())),
+        "csv" => Ok(LogSource::Text { text: a.to_string(), name: b.unwrap_or("<DataFrame>").to_string() }),
+        _ => Err(format!("log kind '{kind}': expected path or csv")),
     }
-}
-
-/// Reads and fits sensorless logs (the CLI's sensorless route).
-fn sensorless_fit(
-    logs: &[(String, String, Option<String>)],
-    base: &stepdamp_sim::Profile,
-    orders: &[u16],
-) -> Result<(SensorlessFit, Vec<SensorlessLog>), String> {
-    let mut read = Vec::new();
-    for (kind, a, b) in logs {
-        read.push(match kind.as_str() {
-            "path" => read_sensorless_log(std::path::Path::new(a)).map_err(|e| e.to_string())?,
-            "csv" => {
-                parse_sensorless_log(a.as_bytes(), b.as_deref().unwrap_or("<DataFrame>")).map_err(|e| e.to_string())?
-            }
-            _ => return Err(format!("log kind '{kind}': expected path or csv")),
-        });
-    }
-    let fo = sensorless::fit_options(base, orders);
-    let f = sensorless::identify(&read, base, &fo, &FluxOptions::default()).map_err(|e| e.to_string())?;
-    Ok((f, read))
 }
 
 fn estimate<'py>(py: Python<'py>, e: &Estimate) -> PyResult<Bound<'py, PyDict>> {
@@ -57,9 +28,10 @@ fn estimate<'py>(py: Python<'py>, e: &Estimate) -> PyResult<Bound<'py, PyDict>> 
 /// Identifies the detent harmonics, `Fs`, `D` and `J` from run logs (the CLI's
 /// `identify`). `logs` is a list of `("path", path)` or `("csv", text, source)`
 /// (the Python wrapper turns DataFrames into CSV text, so the CLI's reader checks them).
-/// Logs without `theta_fb_rad` (or `sensorless=True`) take the sensorless route, as the
-/// CLI's, which also trims `R`. Returns `(profile, report)`: `base` with the identified
-/// values, and the fit report (`report["route"]` says which route ran).
+/// The route is the CLI's: logs without `theta_fb_rad` take the sensorless route (which
+/// also trims `R`), a set of both routes is refused; `sensorless=True` or `False` forces
+/// one. Returns `(profile, report)`: `base` with the identified values, and the fit report
+/// (`report["route"]` says which route ran).
 #[pyfunction]
 #[pyo3(signature = (logs, base, orders = vec![1, 2, 4], name = None, sensorless = None))]
 pub fn identify<'py>(
@@ -71,40 +43,19 @@ pub fn identify<'py>(
     sensorless: Option<bool>,
 ) -> PyResult<(PyProfile, Bound<'py, PyDict>)> {
     let base = base.inner.clone();
-    let opts = LogOptions::new(base.motor.pole_pairs);
-    type Routed = (stepdamp_identify::fit::Fit, Model, Vec<(String, Vec<String>)>, Option<(f64, (f64, f64))>);
-    let (f, model, ignored, sensorless_found) = py
-        .allow_threads(|| -> Result<Routed, String> {
-            let first = logs.first().ok_or("no logs given")?;
-            let route = match sensorless {
-                Some(true) => LogKind::Sensorless,
-                Some(false) => LogKind::Encoder,
-                None => kind_of(&first.0, &first.1)?,
+    let report = py
+        .allow_threads(|| -> Result<_, String> {
+            let sources =
+                logs.iter().map(|(k, a, b)| source(k, a, b.as_deref())).collect::<Result<Vec<_>, String>>()?;
+            let o = IdentifyOptions {
+                route: sensorless.map(|s| if s { Route::Sensorless } else { Route::Encoder }),
+                name,
+                ..IdentifyOptions::new(&orders)
             };
-            if route == LogKind::Sensorless {
-                let (sf, read) = sensorless_fit(&logs, &base, &orders)?;
-                let ignored = read.iter().map(|l| (l.source.clone(), l.ignored_columns.clone())).collect();
-                let found = (sf.estimated.resistance_ohm, sf.estimated.current_offset_a);
-                return Ok((sf.fit.clone(), sf.model(), ignored, Some(found)));
-            }
-            let mut read = Vec::new();
-            for (kind, a, b) in &logs {
-                let log: RunLog = match kind.as_str() {
-                    "path" => read_log(std::path::Path::new(a), &opts).map_err(|e| e.to_string())?,
-                    "csv" => parse_log(a.as_bytes(), b.as_deref().unwrap_or("<DataFrame>"), &opts)
-                        .map_err(|e| e.to_string())?,
-                    _ => return Err(format!("log kind '{kind}': expected path or csv")),
-                };
-                read.push(log);
-            }
-            let f = fit(&read, &FitOptions::for_profile(&base, &orders)).map_err(|e| e.to_string())?;
-            let ignored = read.iter().map(|l| (l.source.clone(), l.ignored_columns.clone())).collect();
-            let model = Model::from_fit(&f);
-            Ok((f, model, ignored, None))
+            identify_logs(&sources, &base, &o).map_err(|e| e.to_string())
         })
         .map_err(err)?;
-    let name = name.unwrap_or_else(|| format!("{}-identified", base.name));
-    let profile = model.apply_to(&base, Some(&name), &name).map_err(err)?;
+    let f = report.fit();
     let r = PyDict::new(py);
     let mut harmonics = Vec::new();
     for h in &f.harmonics {
@@ -140,11 +91,13 @@ pub fn identify<'py>(
         runs.push(d);
     }
     r.set_item("runs", runs)?;
+    let ignored: Vec<(String, Vec<String>)> =
+        report.logs.iter().map(|l| (l.source.clone(), l.ignored_columns.clone())).collect();
     r.set_item("ignored_columns", ignored)?;
-    r.set_item("route", if sensorless_found.is_some() { "sensorless" } else { "encoder" })?;
-    if let Some((r_ohm, offset)) = sensorless_found {
+    r.set_item("route", report.route.name())?;
+    if let (Some(r_ohm), Some(offset)) = (report.resistance_ohm(), report.current_offset_a) {
         r.set_item("resistance_ohm", r_ohm)?;
         r.set_item("current_offset_a", offset)?;
     }
-    Ok((PyProfile { inner: profile }, r))
+    Ok((PyProfile { inner: report.profile }, r))
 }

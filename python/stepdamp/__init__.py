@@ -205,8 +205,8 @@ def identify(
     logs ``t_s``, ``theta_cmd_rad``, ``i_a_a``, ``i_b_a``, ``v_a_v``, ``v_b_v`` of the runs
     the CLI's ``identify plan --sensorless`` lists. ``base``: the profile whose Km, Nr,
     encoder and servo settings (sensorless: Km, Nr, R, L) apply. ``sensorless``: ``None``
-    takes the sensorless route when the first log has no ``theta_fb_rad``; ``True`` or
-    ``False`` forces a route. Returns ``(profile, report)``: ``base`` with the identified
+    takes the sensorless route when the logs have no ``theta_fb_rad`` (a set of both kinds
+    is refused; a file given twice too); ``True`` or ``False`` forces a route. Returns ``(profile, report)``: ``base`` with the identified
     values (named ``name``; sensorless: ``R`` trimmed too) and the fit report (estimates with
     95 % half-widths, N·m, rad, kg·m²; warnings; ``route``; sensorless: ``resistance_ohm``
     in Ω and ``current_offset_a``, the sampled currents' offset in A).

@@ -1,8 +1,10 @@
 //! `identify` (the fit) prints the fit's decisions and its validation exactly as the library
-//! computes them, honours `--inertia`, and `--report` plots the validation.
+//! computes them, honours `--inertia`, and `--report` plots the validation; it reads each log
+//! once (a FIFO and standard input give the file's profile) and refuses a file given twice.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
 use stepdamp_identify::conditions::InertiaMode;
 use stepdamp_identify::fit::{FeedForwardCheck, FitOptions, FitReport, fit};
 use stepdamp_identify::log::{LogOptions, read_log};
@@ -271,4 +273,121 @@ fn identify_run_refine_json_is_the_library_run_report_and_the_summary_its_rows()
         assert_eq!((c[0], c[1].parse().ok(), c[2]), (row.quantity, row.order, row.unit), "{line}");
         assert_eq!([num(c[3]), num(c[4]), num(c[5])], [row.motor, row.identified, row.refined], "{line}");
     }
+}
+
+/// Runs the binary with `stdin`, killed (and the test failed) after two minutes: reading a
+/// log twice used to wait forever on a FIFO.
+fn stepdamp_with(args: &[&str], stdin: Stdio) -> Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_stepdamp"))
+        .args(args)
+        .stdin(stdin)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("runs");
+    let t0 = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if t0.elapsed() > Duration::from_secs(120) {
+            child.kill().unwrap();
+            panic!("{args:?}: still running after 120 s (waiting on a log it opened twice?)");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap()
+}
+
+fn ok(o: &Output) -> String {
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    String::from_utf8(o.stdout.clone()).unwrap()
+}
+
+/// The one-line error of a failed run.
+fn error(o: &Output) -> String {
+    assert!(!o.status.success(), "succeeded: {}", String::from_utf8_lossy(&o.stdout));
+    let e = String::from_utf8(o.stderr.clone()).unwrap();
+    assert_eq!(e.trim_end().lines().count(), 1, "{e}");
+    e
+}
+
+/// `identify` of `first` (as given) and the other logs, the profile it wrote.
+fn identified(first: &str, rest: &[PathBuf], base: &Path, out: &Path, stdin: Stdio) -> String {
+    let mut args = vec!["identify", "--log", first];
+    for l in rest {
+        args.extend(["--log", l.to_str().unwrap()]);
+    }
+    args.extend(["--motor", base.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    ok(&stepdamp_with(&args, stdin));
+    std::fs::read_to_string(out).unwrap()
+}
+
+#[cfg(target_os = "linux")]
+#[test]
+fn a_fifo_and_standard_input_give_the_profile_the_file_gives() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (csv, base) = logs(d);
+    let from_file = identified(csv[0].to_str().unwrap(), &csv[1..], &base, &d.join("file.toml"), Stdio::null());
+
+    let fifo = d.join("log.fifo");
+    assert!(Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    let writer = {
+        let (fifo, src) = (fifo.clone(), csv[0].clone());
+        // Opens the FIFO once and writes the log once; an error (the reader gone) ends it.
+        std::thread::spawn(move || {
+            let _ = std::fs::write(&fifo, std::fs::read(src).unwrap());
+        })
+    };
+    let from_fifo = identified(fifo.to_str().unwrap(), &csv[1..], &base, &d.join("fifo.toml"), Stdio::null());
+    if !writer.is_finished() {
+        // A writer still waiting for a reader: release it (O_NONBLOCK, 0o4000 on Linux).
+        use std::os::unix::fs::OpenOptionsExt;
+        let _ = std::fs::OpenOptions::new().read(true).custom_flags(0o4000).open(&fifo);
+    }
+    writer.join().unwrap();
+    assert_eq!(from_fifo, from_file);
+
+    let stdin = Stdio::from(std::fs::File::open(&csv[0]).unwrap());
+    let from_stdin = identified("-", &csv[1..], &base, &d.join("stdin.toml"), stdin);
+    assert_eq!(from_stdin, from_file);
+}
+
+#[test]
+fn a_log_given_twice_is_refused_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let log = d.join("a.csv");
+    std::fs::write(&log, "t_s,theta_fb_rad,i_q_a\n0,0,0\n").unwrap();
+    let out = d.join("id.toml");
+    let run = |logs: &[&str], stdin: Stdio| {
+        let mut a = vec!["identify", "--motor", "patent-motor", "--out", out.to_str().unwrap()];
+        for l in logs {
+            a.extend(["--log", l]);
+        }
+        stepdamp_with(&a, stdin)
+    };
+    let l = log.to_str().unwrap();
+    let again = d.join(".").join("a.csv");
+    for second in [l, again.to_str().unwrap()] {
+        let e = error(&run(&[l, second], Stdio::null()));
+        assert!(e.contains(&format!("{second}: given twice (first as {l})")), "{e}");
+    }
+    let e = error(&run(&["-", "-"], Stdio::null()));
+    assert!(e.contains("standard input (-) is given twice"), "{e}");
+    #[cfg(unix)]
+    {
+        // Standard input redirected from a file given by name too.
+        let e = error(&run(&[l, "-"], Stdio::from(std::fs::File::open(&log).unwrap())));
+        assert!(e.contains("<stdin>: given twice") && e.contains(l), "{e}");
+    }
+    assert!(!out.exists());
+}
+
+#[test]
+fn a_missing_log_is_one_line_naming_it_with_the_reason_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let (log, out) = (dir.path().join("none.csv"), dir.path().join("id.toml"));
+    let (l, o) = (log.to_str().unwrap(), out.to_str().unwrap());
+    let e = error(&stepdamp_with(&["identify", "--log", l, "--motor", "patent-motor", "--out", o], Stdio::null()));
+    assert!(e.starts_with(&format!("error: {l}: cannot read: ")), "{e}");
+    assert_eq!(e.matches("os error").count(), 1, "{e}");
 }

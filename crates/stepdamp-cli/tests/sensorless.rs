@@ -120,7 +120,13 @@ fn sensorless_misuse_fails_with_one_line() {
         a.extend_from_slice(extra);
         stepdamp(&a)
     };
-    assert_clean_error(&o(&["--log", enc.to_str().unwrap(), "--log", sl.to_str().unwrap()]), "one route");
+    // A mixed set is refused naming a log of each route (from their headers alone: the
+    // one-row encoder log is too short to fit, and that is not what is said).
+    let (e, s) = (enc.to_str().unwrap(), sl.to_str().unwrap());
+    let mixed = format!(
+        "{s} has no theta_fb_rad (a sensorless log), but {e} has theta_fb_rad (an encoder log): give logs of one route"
+    );
+    assert_clean_error(&o(&["--log", e, "--log", s]), &mixed);
     assert_clean_error(&o(&["--log", sl.to_str().unwrap(), "--ff-on"]), "--ff-on");
     // A sensorless log missing a voltage names it.
     std::fs::write(&sl, "t_s,theta_cmd_rad,i_a_a,i_b_a,v_a_v\n0,0,1,0,0.9\n").unwrap();

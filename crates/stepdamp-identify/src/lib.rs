@@ -6,6 +6,7 @@
 //!
 //! | module | what |
 //! |---|---|
+//! | [`from_logs`] | the one entry from logs: read each once, take the route, fit, report, profile |
 //! | [`log`] | read a run-log CSV (docs/files.md); errors name the file, line and column |
 //! | [`kinematics`] | speed and acceleration from a quantised encoder angle |
 //! | [`lsq`] | least squares (QR + SVD) with a block-robust covariance |
@@ -47,6 +48,7 @@
 
 pub mod conditions;
 pub mod fit;
+pub mod from_logs;
 pub mod kinematics;
 pub mod log;
 pub mod lsq;

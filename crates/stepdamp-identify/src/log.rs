@@ -329,14 +329,21 @@ pub(crate) fn column_list(names: &[String]) -> String {
     s
 }
 
+/// What an empty encoder log is told it should have started with.
+pub(crate) const EXPECTED_HEADER: &str = "empty file: expected a header row (t_s, theta_fb_rad, i_q_a, …)";
+
 /// Parses a run log from any reader; `source` names it in errors.
 pub fn parse_log<R: Read>(reader: R, source: &str, opts: &LogOptions) -> Result<RunLog, LogError> {
-    let cols = columns::ColumnReader::open(
-        reader,
-        source,
-        &KNOWN_COLUMNS,
-        "empty file: expected a header row (t_s, theta_fb_rad, i_q_a, …)",
-    )?;
+    let cols = columns::ColumnReader::open(reader, source, &KNOWN_COLUMNS, EXPECTED_HEADER)?;
+    log_from_columns(cols, source, opts)
+}
+
+/// The rest of [`parse_log`] once the header is read: the same reader goes on to the rows.
+pub(crate) fn log_from_columns<R: Read>(
+    cols: columns::ColumnReader<R>,
+    source: &str,
+    opts: &LogOptions,
+) -> Result<RunLog, LogError> {
     if !cols.has("t_s") {
         return Err(cols.missing("t_s", "time in s"));
     }

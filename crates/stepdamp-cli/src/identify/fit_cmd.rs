@@ -1,7 +1,73 @@
-//! `stepdamp identify` itself: the fit of run logs, its table, decisions and validation.
+//! `stepdamp identify --log …`: the arguments, the library's [`identify`], and its report
+//! printed (text or JSON), plotted (`--report`) and its profile written.
 
-use super::*;
+use super::args::{Orders, check_output_dir, parse_orders};
+use super::report::write_report;
+use crate::Global;
+use crate::common::{Format, choice_parser, load_motor, print_json, write_atomic};
+use anyhow::{Result, bail};
+use std::path::PathBuf;
+use stepdamp_identify::conditions::InertiaMode;
+use stepdamp_identify::fit::Effort;
+use stepdamp_identify::from_logs::{IdentifyOptions, LogSource, Route, identify};
 
+/// Identification from logs (the default action).
+#[derive(clap::Args, Debug)]
+pub(super) struct FitArgs {
+    /// A run log (CSV, docs/files.md): a file, a FIFO, or - for standard input; each read
+    /// once, and no file twice. A servo-mode log needs t_s, theta_fb_rad and i_q_a (or
+    /// i_a_a and i_b_a). A log without theta_fb_rad takes the sensorless route (said so in
+    /// the output; docs/sensorless.md): it needs t_s, theta_cmd_rad, i_a_a, i_b_a, v_a_v,
+    /// v_b_v of the runs of `identify plan --sensorless`. Repeat for several runs, all of
+    /// one route.
+    #[arg(long = "log", value_name = "CSV")]
+    pub(super) logs: Vec<PathBuf>,
+    /// Base motor profile (preset or TOML): Km, Nr, encoder and servo settings are taken
+    /// from it; its detent list, friction and J are replaced by what is identified (J is
+    /// fitted; a warning says when it differs from the base's by more than 20 %).
+    #[arg(long, value_name = "PRESET|FILE")]
+    pub(super) motor: Option<String>,
+    /// Where to write the identified profile (TOML).
+    #[arg(long, value_name = "FILE")]
+    pub(super) out: Option<PathBuf>,
+    /// Harmonic orders to identify (comma list).
+    #[arg(long, default_value = "1,2,4", value_parser = parse_orders)]
+    pub(super) orders: Orders,
+    /// Directory for the report: effort-ripple spectrum and residual plots (SVG + PNG).
+    #[arg(long, value_name = "DIR")]
+    pub(super) report: Option<PathBuf>,
+    /// The effort signal: measured (i_q_a) or command (iq_cmd_a).
+    #[arg(long, default_value = "measured", value_parser = choice_parser(Effort::ALL, Effort::name))]
+    pub(super) effort: Effort,
+    /// The logs were recorded with the --motor profile's detent and Fs fed forward: print
+    /// the remaining ripple (the patent's refinement criterion). J is then held at the
+    /// --motor profile's (fitted otherwise).
+    #[arg(long)]
+    pub(super) ff_on: bool,
+    /// Servo position-loop bandwidth of the logged runs in Hz (default: the profile's
+    /// [servo] bandwidth_hz); only used for warnings.
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
+    pub(super) servo_bandwidth: Option<f64>,
+    /// How J is obtained: fit (always fitted), base (the --motor profile's) or auto
+    /// (fitted when the logs separate it — two speeds in both directions — and its 95 %
+    /// interval is narrow, else the base profile's). The decision is printed.
+    #[arg(long, default_value = "auto", value_parser = choice_parser(InertiaMode::ALL, InertiaMode::name))]
+    pub(super) inertia: InertiaMode,
+    /// text, or json: the fit's report (stepdamp_identify::fit::FitReport, or on the
+    /// sensorless route stepdamp_identify::sensorless::report::SensorlessReport) as one line
+    /// of JSON on stdout, nothing else (the files are written the same).
+    #[arg(long, value_enum, default_value_t)]
+    pub(super) format: Format,
+    /// Name of the identified profile (default: base name + "-identified").
+    #[arg(long)]
+    pub(super) name: Option<String>,
+    /// Take the sensorless route even when the logs have theta_fb_rad (to compare the two
+    /// routes on the same runs; the encoder angle is then not read).
+    #[arg(long)]
+    pub(super) sensorless: bool,
+}
+
+/// Runs `stepdamp identify --log …`.
 pub(super) fn run_fit_cmd(a: FitArgs, _global: &Global) -> Result<()> {
     let Some(motor) = &a.motor else { bail!("--motor is needed: the base profile (preset or TOML) with Km, Nr, J") };
     let Some(out) = &a.out else { bail!("--out is needed: where to write the identified profile (TOML)") };
@@ -9,100 +75,39 @@ pub(super) fn run_fit_cmd(a: FitArgs, _global: &Global) -> Result<()> {
         bail!("no --log given: pass the servo-mode run logs (CSV), e.g. --log a.csv --log b.csv");
     }
     let base = load_motor(motor)?;
-    let orders = a.orders.0.clone();
-    if a.sensorless || route_of(&a.logs)? == stepdamp_identify::sensorless::log::LogKind::Sensorless {
-        return run_sensorless_fit_cmd(&a, &base, &orders, out);
-    }
-    if let Some(bw) = a.servo_bandwidth
-        && !(bw.is_finite() && bw > 0.0)
-    {
-        bail!("--servo-bandwidth {bw}: must be a positive number of Hz");
-    }
     check_output_dir(out)?;
+    let options = IdentifyOptions {
+        route: a.sensorless.then_some(Route::Sensorless),
+        effort: a.effort,
+        inertia: a.inertia,
+        servo_bandwidth_hz: a.servo_bandwidth,
+        feed_forward_on: a.ff_on,
+        name: a.name.clone(),
+        destination: out.display().to_string(),
+        ..IdentifyOptions::new(&a.orders.0)
+    };
+    let sources: Vec<LogSource> = a.logs.iter().map(LogSource::from_arg).collect();
+    let report = identify(&sources, &base, &options)?;
     // With --format json stdout is the report's JSON alone (one line); the files are written
     // all the same.
     let text = a.format == Format::Text;
-    let t0 = Instant::now();
-    let logs = read_logs(&a.logs, base.motor.pole_pairs)?;
-    let t_read = t0.elapsed().as_secs_f64();
-    for l in &logs {
-        if text && !l.ignored_columns.is_empty() {
-            outln!("note: {}: ignored unknown columns: {}", l.source, l.ignored_columns.join(", "));
-        }
-    }
-    let mut fo = FitOptions::for_profile(&base, &orders);
-    fo.effort = a.effort;
-    fo.inertia = a.inertia;
-    if let Some(bw) = a.servo_bandwidth {
-        fo.servo_bandwidth_hz = Some(bw);
-    }
-    if a.ff_on {
-        // Feed-forward-on logs: raw effort, J held at the base profile's (the one whose
-        // feed-forward ran, normally identified from feed-forward-off logs).
-        fo.correct_quantisation = false;
-        fo.smooth_effort = false;
-        fo.fit_inertia = false;
-    }
-    let f = fit(&logs, &fo)?;
-    let t_fit = t0.elapsed().as_secs_f64() - t_read;
-    let model = Model::from_fit(&f);
-    let name = a.name.clone().unwrap_or_else(|| default_name(&base, "identified"));
-    let out_s = out.display().to_string();
-    let profile = model.apply_to(&base, Some(&name), &out_s).map_err(|e| anyhow!("{e}"))?;
-    let rows: usize = logs.iter().map(RunLog::len).sum();
-    let ff = a.ff_on.then(|| FeedForwardCheck::new(&base, &f));
-    let validation = print_fit_report(&f, &base.name, ff, a.format)?;
     if text {
-        outln!("{} logs, {rows} rows: read in {t_read:.3} s, fitted in {t_fit:.3} s", logs.len());
+        outln!("{report}");
+        outln!("{}", report.timing());
+    } else {
+        print_json(&report.result)?;
     }
     if let Some(dir) = &a.report {
-        let written = write_report(dir, &f, None, Some(&validation), &profile.name)?;
-        for w in written.iter().filter(|_| text) {
-            outln!("wrote {}", w.display());
+        let fit = report.fit_report();
+        for w in write_report(dir, &fit.fit, None, Some(&fit.validation), &report.profile.name)? {
+            if text {
+                outln!("wrote {}", w.display());
+            }
         }
     }
-    write_atomic(out, profile.to_toml_string().as_bytes())?;
+    write_atomic(out, report.profile.to_toml_string().as_bytes())?;
     if text {
-        outln!("wrote {out_s}");
+        outln!("wrote {}", out.display());
     }
-    Ok(())
-}
-
-/// Prints the fit's report ([`FitReport`]: the table, the warnings, the decisions — which
-/// `J`, and why — and the validation) and returns its validation for the plots.
-pub(super) fn print_fit_report(
-    f: &Fit,
-    base: &str,
-    ff: Option<FeedForwardCheck>,
-    format: Format,
-) -> Result<Validation> {
-    let mut report = FitReport::new(base, f.clone());
-    if let Some(c) = ff {
-        report = report.with_feed_forward(c);
-    }
-    match format {
-        Format::Text => outln!("{report}"),
-        Format::Json => print_json(&report)?,
-    }
-    Ok(report.validation)
-}
-
-pub(super) fn check_output_dir(out: &Path) -> Result<()> {
-    let dir = out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    if !dir.is_dir() {
-        bail!("--out {}: directory {} does not exist", out.display(), dir.display());
-    }
-    if out.is_dir() {
-        bail!(
-            "--out {}: is a directory; give the profile's file name, e.g. {}",
-            out.display(),
-            out.join("identified.toml").display()
-        );
-    }
-    // Fail now, before any work or any report file, if the profile could not be written.
-    let probe = dir.join(format!(".stepdamp-write-test-{}", std::process::id()));
-    std::fs::write(&probe, b"")
-        .map_err(|e| anyhow!("--out {}: directory {} is not writable: {e}", out.display(), dir.display()))?;
-    let _ = std::fs::remove_file(&probe);
     Ok(())
 }

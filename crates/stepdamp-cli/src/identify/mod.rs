@@ -1,5 +1,7 @@
 //! `stepdamp identify`: detent harmonics and friction from servo-mode run logs
 //! (docs/design.md#identification), the experiment plan, simulated runs, refinement, the static route.
+//! One file per subcommand; each parses its arguments, calls the library and prints its
+//! result types.
 //!
 //! ```text
 //! stepdamp identify --log a.csv --log b.csv --motor base.toml --out identified.toml [--orders 1,2,4] [--report DIR]
@@ -9,34 +11,14 @@
 //! ```
 
 use crate::Global;
-use crate::common::{AtomicFiles, Format, choice_parser, load_motor, print_json, progress, write_atomic};
-use anyhow::{Result, anyhow, bail};
-use plotters::coord::Shift;
-use plotters::prelude::*;
-use rayon::prelude::*;
-use std::path::{Path, PathBuf};
-use std::time::Instant;
-use stepdamp_identify::conditions::InertiaMode;
-use stepdamp_identify::fit::{Effort, FeedForwardCheck, Fit, FitOptions, FitReport, fit};
-use stepdamp_identify::log::{LogOptions, RunLog, read_log};
-use stepdamp_identify::model::Model;
-use stepdamp_identify::plan::{Plan, PlanOptions, plan, run_plan};
-use stepdamp_identify::refine::{RefineOptions, Refinement, RefinementReport, RunReport, refine, series_nm};
-use stepdamp_identify::spectrum::order_spectrum;
-use stepdamp_identify::static_curve::{StaticReport, TorqueSign, analyse, read_table};
-use stepdamp_identify::validation::Validation;
-use stepdamp_sim::Profile;
+use anyhow::Result;
 
+mod args;
 mod fit_cmd;
+mod plan_cmd;
 mod report;
 mod run_cmd;
-mod sensorless_cmd;
-
-use fit_cmd::*;
-use report::*;
-use run_cmd::*;
-use sensorless_cmd::*;
-use stepdamp_identify::plan::PlannedRun;
+mod static_cmd;
 
 /// Arguments of `stepdamp identify`.
 #[derive(clap::Args, Debug)]
@@ -45,248 +27,45 @@ pub struct IdentifyArgs {
     #[command(subcommand)]
     command: Option<IdentifyCommand>,
     #[command(flatten)]
-    fit: FitArgs,
+    fit: fit_cmd::FitArgs,
 }
 
 /// `stepdamp identify <subcommand>`.
 #[derive(clap::Subcommand, Debug)]
 enum IdentifyCommand {
     /// Print the runs to record for identification, with the reason for each.
-    Plan(PlanArgs),
+    Plan(plan_cmd::PlanArgs),
     /// Simulate the plan's runs and write their logs (optionally identify and refine).
-    Run(RunArgs),
+    Run(run_cmd::RunArgs),
     /// Harmonics from a static torque-versus-angle table (CSV theta_rad, torque_nm) by FFT.
-    Static(StaticArgs),
-}
-
-/// Identification from logs (the default action).
-#[derive(clap::Args, Debug)]
-struct FitArgs {
-    /// A run log (CSV, docs/files.md). A servo-mode log needs t_s, theta_fb_rad and i_q_a
-    /// (or i_a_a and i_b_a). A log without theta_fb_rad takes the sensorless route (said so
-    /// in the output; docs/sensorless.md): it needs t_s, theta_cmd_rad, i_a_a, i_b_a,
-    /// v_a_v, v_b_v of the runs of `identify plan --sensorless`. Repeat for several runs.
-    #[arg(long = "log", value_name = "CSV")]
-    logs: Vec<PathBuf>,
-    /// Base motor profile (preset or TOML): Km, Nr, encoder and servo settings are taken
-    /// from it; its detent list, friction and J are replaced by what is identified (J is
-    /// fitted; a warning says when it differs from the base's by more than 20 %).
-    #[arg(long, value_name = "PRESET|FILE")]
-    motor: Option<String>,
-    /// Where to write the identified profile (TOML).
-    #[arg(long, value_name = "FILE")]
-    out: Option<PathBuf>,
-    /// Harmonic orders to identify (comma list).
-    #[arg(long, default_value = "1,2,4", value_parser = parse_orders)]
-    orders: Orders,
-    /// Directory for the report: effort-ripple spectrum and residual plots (SVG + PNG).
-    #[arg(long, value_name = "DIR")]
-    report: Option<PathBuf>,
-    /// The effort signal: measured (i_q_a) or command (iq_cmd_a).
-    #[arg(long, default_value = "measured", value_parser = choice_parser(Effort::ALL, Effort::name))]
-    effort: Effort,
-    /// The logs were recorded with the --motor profile's detent and Fs fed forward: print
-    /// the remaining ripple (the patent's refinement criterion). J is then held at the
-    /// --motor profile's (fitted otherwise).
-    #[arg(long)]
-    ff_on: bool,
-    /// Servo position-loop bandwidth of the logged runs in Hz (default: the profile's
-    /// [servo] bandwidth_hz); only used for warnings.
-    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
-    servo_bandwidth: Option<f64>,
-    /// How J is obtained: fit (always fitted), base (the --motor profile's) or auto
-    /// (fitted when the logs separate it — two speeds in both directions — and its 95 %
-    /// interval is narrow, else the base profile's). The decision is printed.
-    #[arg(long, default_value = "auto", value_parser = choice_parser(InertiaMode::ALL, InertiaMode::name))]
-    inertia: InertiaMode,
-    /// text, or json: the fit's report (stepdamp_identify::fit::FitReport) as one line of
-    /// JSON on stdout, nothing else (the files are written the same).
-    #[arg(long, value_enum, default_value_t)]
-    format: Format,
-    /// Name of the identified profile (default: base name + "-identified").
-    #[arg(long)]
-    name: Option<String>,
-    /// Take the sensorless route even when the logs have theta_fb_rad (to compare the two
-    /// routes on the same runs; the encoder angle is then not read).
-    #[arg(long)]
-    sensorless: bool,
-}
-
-/// `stepdamp identify plan`.
-#[derive(clap::Args, Debug)]
-struct PlanArgs {
-    /// Motor profile (preset or TOML) to plan for.
-    #[arg(long, value_name = "PRESET|FILE")]
-    motor: String,
-    /// Harmonic orders to identify.
-    #[arg(long, default_value = "1,2,4", value_parser = parse_orders)]
-    orders: Orders,
-    /// Electrical periods of steady running per run.
-    #[arg(long, default_value_t = 40.0, allow_negative_numbers = true)]
-    periods: f64,
-    /// Plan open-loop runs for the sensorless route (no encoder: the drive's own voltages
-    /// and currents), with a standstill that trims R.
-    #[arg(long)]
-    sensorless: bool,
-    /// text; json: the plan (stepdamp_identify::plan::Plan, or
-    /// stepdamp_identify::sensorless::plan::SensorlessPlan) as one line of JSON; csv: one
-    /// row per run, columns run,speed_rad_s,duration_s,standstill_s,ramp_s.
-    #[arg(long, value_enum, default_value_t)]
-    format: PlanFormat,
-}
-
-/// Output of `identify plan`.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, Default, PartialEq, Eq)]
-enum PlanFormat {
-    /// For people: the runs with their reasons.
-    #[default]
-    Text,
-    /// One JSON object.
-    Json,
-    /// One row per run (run,speed_rad_s,duration_s,standstill_s,ramp_s), for a script or
-    /// another drive to perform exactly the plan.
-    Csv,
-}
-
-/// `stepdamp identify run`.
-#[derive(clap::Args, Debug)]
-struct RunArgs {
-    /// Motor profile (preset or TOML) to simulate.
-    #[arg(long, value_name = "PRESET|FILE")]
-    motor: String,
-    /// Output directory for the logs (one CSV per run), plan.txt, base.toml (the profile the
-    /// runs were recorded with, [servo] included: pass it to `identify --motor`) and, with
-    /// --refine, identified.toml and refine-summary.csv.
-    #[arg(long, value_name = "DIR")]
-    out: PathBuf,
-    /// Also identify from the logs, refine with the feed-forward on (patent criterion) and
-    /// write DIR/identified.toml.
-    #[arg(long)]
-    refine: bool,
-    /// With --refine: write the report plots into DIR.
-    #[arg(long)]
-    report: bool,
-    /// Harmonic orders to identify.
-    #[arg(long, default_value = "1,2,4", value_parser = parse_orders)]
-    orders: Orders,
-    /// Electrical periods of steady running per run.
-    #[arg(long, default_value_t = 40.0, allow_negative_numbers = true)]
-    periods: f64,
-    /// Current-sensor noise, standard deviation in A.
-    #[arg(long, default_value_t = 0.01, allow_negative_numbers = true)]
-    current_noise: f64,
-    /// Seed of the noise generators.
-    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
-    seed: u64,
-    /// Simulate the sensorless plan (open loop, no encoder; logs with the applied
-    /// voltages), identify from it and write DIR/identified.toml with R trimmed.
-    #[arg(long)]
-    sensorless: bool,
-    /// Most refinement iterations.
-    #[arg(long, default_value_t = 3, allow_negative_numbers = true)]
-    iterations: i64,
-    /// text, or json: the run's result (stepdamp_identify::refine::RunReport: the plan, and
-    /// with --refine the fit's report and the refinement) as one line of JSON on stdout,
-    /// nothing else (the files are written the same).
-    #[arg(long, value_enum, default_value_t)]
-    format: Format,
-}
-
-/// `stepdamp identify static`.
-#[derive(clap::Args, Debug)]
-struct StaticArgs {
-    /// Torque-versus-angle table: CSV with columns theta_rad (mechanical) and torque_nm,
-    /// over a whole number of electrical periods.
-    #[arg(long, value_name = "CSV")]
-    table: PathBuf,
-    /// What the table holds: on-rotor (the detent torque on the rotor, −Σ A sin) or holding
-    /// (the torque applied to hold the rotor, +Σ A sin).
-    #[arg(long, value_parser = choice_parser(TorqueSign::ALL, TorqueSign::name))]
-    sign: TorqueSign,
-    /// Base motor profile (preset or TOML).
-    #[arg(long, value_name = "PRESET|FILE")]
-    motor: String,
-    /// Where to write the profile with the detent replaced (friction kept).
-    #[arg(long, value_name = "FILE")]
-    out: PathBuf,
-    /// Harmonic orders to keep.
-    #[arg(long, default_value = "1,2,4", value_parser = parse_orders)]
-    orders: Orders,
-    /// Name of the new profile (default: base name + "-static").
-    #[arg(long)]
-    name: Option<String>,
-    /// text, or json: the analysis (stepdamp_identify::static_curve::StaticReport) as one
-    /// line of JSON on stdout, nothing else (the profile is written the same).
-    #[arg(long, value_enum, default_value_t)]
-    format: Format,
+    Static(static_cmd::StaticArgs),
 }
 
 /// Runs `stepdamp identify`.
 pub fn run(args: IdentifyArgs, global: &Global) -> Result<()> {
     match args.command {
-        Some(IdentifyCommand::Plan(a)) => run_plan_cmd(a),
-        Some(IdentifyCommand::Run(a)) => run_run_cmd(a, global),
-        Some(IdentifyCommand::Static(a)) => run_static_cmd(a),
-        None => run_fit_cmd(args.fit, global),
+        Some(IdentifyCommand::Plan(a)) => plan_cmd::run_plan_cmd(a),
+        Some(IdentifyCommand::Run(a)) => run_cmd::run_run_cmd(a, global),
+        Some(IdentifyCommand::Static(a)) => static_cmd::run_static_cmd(a),
+        None => fit_cmd::run_fit_cmd(args.fit, global),
     }
-}
-
-/// `--orders`: harmonic orders, distinct, each in 1..=[`stepdamp_core::MAX_HARMONIC_ORDER`]
-/// (a typed clap value: clap names the option and the value as written).
-#[derive(Clone, Debug, PartialEq)]
-struct Orders(Vec<u16>);
-
-/// Parses a comma list of harmonic orders (1..=32, distinct).
-fn parse_orders(s: &str) -> Result<Orders, String> {
-    let mut out: Vec<u16> = Vec::new();
-    for part in s.split(',').map(str::trim) {
-        if part.is_empty() {
-            return Err("an empty entry; give a comma list such as 1,2,4".into());
-        }
-        let k: u16 = part.parse().map_err(|_| format!("'{part}' is not a whole number"))?;
-        if k == 0 || usize::from(k) > stepdamp_core::MAX_HARMONIC_ORDER {
-            return Err(format!("{k}: each order must be in 1..={}", stepdamp_core::MAX_HARMONIC_ORDER));
-        }
-        if out.contains(&k) {
-            return Err(format!("{k} is listed twice"));
-        }
-        out.push(k);
-    }
-    Ok(Orders(out))
-}
-
-fn plan_options(orders: &[u16], periods: f64) -> Result<PlanOptions> {
-    if !(periods.is_finite() && (2.0..=100_000.0).contains(&periods)) {
-        bail!("--periods {periods}: must be between 2 and 100000 electrical periods");
-    }
-    Ok(PlanOptions { orders: orders.to_vec(), electrical_periods: periods, ..PlanOptions::default() })
-}
-
-fn run_plan_cmd(a: PlanArgs) -> Result<()> {
-    let motor = load_motor(&a.motor)?;
-    let orders = a.orders.0.clone();
-    if a.sensorless {
-        return run_sensorless_plan_cmd(&a, &motor, &orders);
-    }
-    let p = plan(&motor, &plan_options(&orders, a.periods)?)?;
-    print_plan(&p, &p, &p.runs, a.format)
-}
-
-/// Reads the logs in parallel; the first error (in argument order) wins.
-fn read_logs(paths: &[PathBuf], pole_pairs: u16) -> Result<Vec<RunLog>> {
-    let opts = LogOptions::new(pole_pairs);
-    let logs: Vec<Result<RunLog, _>> = paths.par_iter().map(|p| read_log(p, &opts)).collect();
-    logs.into_iter().map(|r| r.map_err(|e| anyhow!("{e}"))).collect()
-}
-
-fn default_name(base: &Profile, suffix: &str) -> String {
-    format!("{}-{suffix}", base.name)
 }
 
 #[cfg(test)]
 mod tests {
-    use super::*;
+    use super::args::{Orders, parse_orders, plan_options};
+    use super::run_cmd::SUMMARY_FILE;
+    use super::static_cmd::StaticArgs;
+    use super::{IdentifyArgs, IdentifyCommand, run};
+    use crate::Global;
     use std::fmt::Write as _;
+    use std::path::PathBuf;
+    use stepdamp_identify::conditions::InertiaMode;
+    use stepdamp_identify::fit::{Effort, FitOptions, fit};
+    use stepdamp_identify::from_logs::{LogSource, Logs, read_logs};
+    use stepdamp_identify::plan::plan;
+    use stepdamp_identify::static_curve::TorqueSign;
+    use stepdamp_sim::Profile;
 
     fn try_args(v: &[&str]) -> Result<IdentifyArgs, clap::Error> {
         use clap::Parser;
@@ -361,7 +140,8 @@ mod tests {
         // Identified with it (no --servo-bandwidth): the fit knows the logs' servo, so no
         // "too fast for the servo" warning.
         let fo = FitOptions::for_profile(&planned, &[1, 2, 4]);
-        let parsed = read_logs(&logs.iter().map(PathBuf::from).collect::<Vec<_>>(), 50).unwrap();
+        let sources: Vec<LogSource> = logs.iter().map(|l| LogSource::Path(PathBuf::from(l))).collect();
+        let Logs::Encoder(parsed) = read_logs(&sources, 50, None).unwrap() else { panic!("encoder logs") };
         let f = fit(&parsed, &fo).unwrap();
         assert!(
             !f.warnings.iter().any(|w| matches!(w, stepdamp_identify::fit::Warning::TooFast { .. })),

@@ -1,6 +1,16 @@
 //! The report of `--report`: spectrum, residual and validation plots.
 
-use super::*;
+use crate::common::AtomicFiles;
+use anyhow::{Result, anyhow};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::path::{Path, PathBuf};
+use stepdamp_identify::fit::Fit;
+use stepdamp_identify::model::Model;
+use stepdamp_identify::plan::Plan;
+use stepdamp_identify::refine::{Refinement, series_nm};
+use stepdamp_identify::spectrum::order_spectrum;
+use stepdamp_identify::validation::Validation;
 
 pub(super) const MAX_PLOT_ORDER: usize = 16;
 

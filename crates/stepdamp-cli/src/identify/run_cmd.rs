@@ -1,6 +1,66 @@
-//! `stepdamp identify run` (simulated runs, refinement and its summary) and `identify static`.
+//! `stepdamp identify run`: simulate the plan's runs and write their logs; with `--refine`
+//! identify, refine and summarise; with `--sensorless` the sensorless plan, identified.
 
-use super::*;
+use super::args::{Orders, default_name, parse_orders, plan_options};
+use super::plan_cmd::sensorless_options;
+use super::report::write_report;
+use crate::Global;
+use crate::common::{Format, load_motor, print_json, progress, write_atomic};
+use anyhow::{Result, anyhow, bail};
+use std::path::PathBuf;
+use std::time::Instant;
+use stepdamp_identify::from_logs::{IdentifyOptions, IdentifyReport, LogSource, Route, RouteReport, identify};
+use stepdamp_identify::model::Model;
+use stepdamp_identify::plan::{Plan, PlanOptions, plan, run_plan};
+use stepdamp_identify::refine::{RefineOptions, RefinementReport, RunReport, refine};
+use stepdamp_identify::sensorless::plan::{SensorlessPlan, plan as sensorless_plan};
+use stepdamp_identify::sensorless::report::SensorlessReport;
+use stepdamp_identify::simulate::run_sensorless_plan;
+use stepdamp_sim::Profile;
+
+/// `stepdamp identify run`.
+#[derive(clap::Args, Debug)]
+pub(super) struct RunArgs {
+    /// Motor profile (preset or TOML) to simulate.
+    #[arg(long, value_name = "PRESET|FILE")]
+    pub(super) motor: String,
+    /// Output directory for the logs (one CSV per run), plan.txt, base.toml (the profile the
+    /// runs were recorded with, [servo] included: pass it to `identify --motor`) and, with
+    /// --refine, identified.toml and refine-summary.csv.
+    #[arg(long, value_name = "DIR")]
+    pub(super) out: PathBuf,
+    /// Also identify from the logs, refine with the feed-forward on (patent criterion) and
+    /// write DIR/identified.toml.
+    #[arg(long)]
+    pub(super) refine: bool,
+    /// With --refine: write the report plots into DIR.
+    #[arg(long)]
+    pub(super) report: bool,
+    /// Harmonic orders to identify.
+    #[arg(long, default_value = "1,2,4", value_parser = parse_orders)]
+    pub(super) orders: Orders,
+    /// Electrical periods of steady running per run.
+    #[arg(long, default_value_t = 40.0, allow_negative_numbers = true)]
+    pub(super) periods: f64,
+    /// Current-sensor noise, standard deviation in A.
+    #[arg(long, default_value_t = 0.01, allow_negative_numbers = true)]
+    pub(super) current_noise: f64,
+    /// Seed of the noise generators.
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
+    pub(super) seed: u64,
+    /// Simulate the sensorless plan (open loop, no encoder; logs with the applied
+    /// voltages), identify from it and write DIR/identified.toml with R trimmed.
+    #[arg(long)]
+    pub(super) sensorless: bool,
+    /// Most refinement iterations.
+    #[arg(long, default_value_t = 3, allow_negative_numbers = true)]
+    pub(super) iterations: i64,
+    /// text, or json: the run's result (stepdamp_identify::refine::RunReport: the plan, and
+    /// with --refine the fit's report and the refinement) as one line of JSON on stdout,
+    /// nothing else (the files are written the same).
+    #[arg(long, value_enum, default_value_t)]
+    pub(super) format: Format,
+}
 
 /// `outln!` when `$text` (text output), nothing with `--format json`.
 macro_rules! say {
@@ -13,7 +73,7 @@ macro_rules! say {
 
 /// Most control periods `identify run` simulates over all runs (200 s at 20 kHz, a few
 /// hundred MB of logs).
-pub(super) const MAX_SIMULATED_ROWS: f64 = 4e6;
+const MAX_SIMULATED_ROWS: f64 = 4e6;
 
 pub(super) fn run_run_cmd(a: RunArgs, global: &Global) -> Result<()> {
     let motor = load_motor(&a.motor)?;
@@ -22,7 +82,7 @@ pub(super) fn run_run_cmd(a: RunArgs, global: &Global) -> Result<()> {
         bail!("--current-noise {}: must be a finite number ≥ 0 A", a.current_noise);
     }
     if a.sensorless {
-        return run_sensorless_run_cmd(&a, global, &motor, &orders);
+        return run_sensorless(&a, global, &motor, &orders);
     }
     if a.report && !a.refine {
         bail!("--report needs --refine (it plots the identification)");
@@ -39,7 +99,7 @@ pub(super) fn run_run_cmd(a: RunArgs, global: &Global) -> Result<()> {
 /// at `pwm_hz` would hold in memory, check `--out`, then run `work` in the prepared output
 /// directory. If `work` fails or is interrupted, a directory it created is removed, and from
 /// an existing one what it added.
-pub(super) fn in_run_dir(a: &RunArgs, total_s: f64, pwm_hz: f64, work: impl FnOnce() -> Result<()>) -> Result<()> {
+fn in_run_dir(a: &RunArgs, total_s: f64, pwm_hz: f64, work: impl FnOnce() -> Result<()>) -> Result<()> {
     let rows = total_s * pwm_hz;
     if rows > MAX_SIMULATED_ROWS {
         bail!(
@@ -62,7 +122,7 @@ pub(super) fn in_run_dir(a: &RunArgs, total_s: f64, pwm_hz: f64, work: impl FnOn
 
 /// The part of `identify run` after the checks: simulate, write the logs, the plan and the
 /// planned profile, and with `--refine` identify, refine and summarise.
-pub(super) fn simulate_and_identify(
+fn simulate_and_identify(
     a: &RunArgs,
     global: &Global,
     motor: &Profile,
@@ -105,13 +165,13 @@ pub(super) fn simulate_and_identify(
         }
         return Ok(());
     }
-    let logs = read_logs(&done.files, motor.motor.pole_pairs)?;
-    let fo = FitOptions::for_profile(&p.profile, orders);
-    let f0 = fit(&logs, &fo)?;
-    let fit_report = FitReport::new(&motor.name, f0.clone());
-    say!(text, "{fit_report}");
+    let id = identify_simulated(&done.files, &p.profile, orders, Route::Encoder, None, &a.out)?;
+    let fit_report = id.fit_report().clone();
+    say!(text, "{id}");
     let validation = fit_report.validation.clone();
-    let start = Model::from_fit(&f0);
+    let f0 = &fit_report.fit;
+    let fo = IdentifyOptions::new(orders).encoder_fit_options(&p.profile);
+    let start = Model::from_fit(f0);
     let ro = RefineOptions {
         max_iterations: a.iterations as usize,
         current_noise_a: a.current_noise,
@@ -119,9 +179,9 @@ pub(super) fn simulate_and_identify(
         ..RefineOptions::default()
     };
     let pb = progress((p.runs.len() * (a.iterations as usize + 1)) as u64, global.quiet, "refining");
-    let r = refine(motor, p, &start, Some(&f0), &fo, &ro, &|| pb.inc(1))?;
+    let r = refine(motor, p, &start, Some(f0), &fo, &ro, &|| pb.inc(1))?;
     pb.finish_and_clear();
-    let refinement = RefinementReport::new(motor, &f0, &r);
+    let refinement = RefinementReport::new(motor, f0, &r);
     say!(text, "{refinement}");
     let out = a.out.join("identified.toml");
     let profile = r
@@ -129,7 +189,7 @@ pub(super) fn simulate_and_identify(
         .apply_to(motor, Some(&default_name(motor, "identified")), &out.display().to_string())
         .map_err(|e| anyhow!("{e}"))?;
     if a.report {
-        for w in write_report(&a.out, &f0, Some((&r, p)), Some(&validation), &profile.name)? {
+        for w in write_report(&a.out, f0, Some((&r, p)), Some(&validation), &profile.name)? {
             say!(text, "wrote {}", w.display());
         }
     }
@@ -162,49 +222,81 @@ pub(super) fn refine_summary_csv(report: &RefinementReport) -> Result<String> {
     Ok(String::from_utf8(w.into_inner().map_err(|e| anyhow!("{e}"))?)?)
 }
 
-pub(super) fn run_static_cmd(a: StaticArgs) -> Result<()> {
-    let base = load_motor(&a.motor)?;
-    let orders = a.orders.0.clone();
-    let sign = a.sign;
-    check_output_dir(&a.out)?;
-    let pts = read_table(&a.table).map_err(|e| anyhow!("{e}"))?;
-    let kmax = *orders.iter().max().expect("parse_orders gives at least one order");
-    let src = a.table.display().to_string();
-    let c = analyse(&pts, base.motor.pole_pairs, sign, kmax, &src).map_err(|e| anyhow!("{e}"))?;
-    let report = StaticReport::new(&src, pts.len(), &c, &orders);
-    let picked = &report.harmonics;
-    if picked.len() < orders.len() {
-        let missing: Vec<String> =
-            orders.iter().filter(|&&k| picked.iter().all(|h| h.order != k)).map(u16::to_string).collect();
+/// Identifies the logs `identify run` wrote (`files`) from `base` by the library's entry,
+/// on `route`, the profile named `name` (default: `<base>-identified`).
+fn identify_simulated(
+    files: &[PathBuf],
+    base: &Profile,
+    orders: &[u16],
+    route: Route,
+    name: Option<String>,
+    out: &std::path::Path,
+) -> Result<IdentifyReport> {
+    let sources: Vec<LogSource> = files.iter().cloned().map(LogSource::Path).collect();
+    let o = IdentifyOptions {
+        route: Some(route),
+        name,
+        destination: out.join("identified.toml").display().to_string(),
+        ..IdentifyOptions::new(orders)
+    };
+    Ok(identify(&sources, base, &o)?)
+}
+
+/// What `identify run --sensorless` prints with `--format json`.
+#[derive(serde::Serialize)]
+struct SensorlessRun<'a> {
+    plan: &'a SensorlessPlan,
+    identification: &'a SensorlessReport,
+}
+
+/// `identify run --sensorless`: simulate the sensorless plan on `--motor` (its
+/// [motor] with the base's datasheet values), write the logs, plan.txt, plan.csv and
+/// base.toml, identify and write identified.toml.
+fn run_sensorless(a: &RunArgs, global: &Global, motor: &Profile, orders: &[u16]) -> Result<()> {
+    if a.refine {
         bail!(
-            "{src}: {} points over {} electrical periods cannot resolve order {} (order k needs more than 2·k points \
-             per electrical period)",
-            pts.len(),
-            c.electrical_periods,
-            missing.join(", ")
+            "--refine: refinement runs the feed-forward in servo mode on an encoder; the sensorless route identifies without one (drop --refine)"
         );
     }
-    let json = a.format == Format::Json;
-    if !json {
-        outln!("{report}");
+    let p = sensorless_plan(motor, &sensorless_options(orders, a.periods)?)?;
+    in_run_dir(a, p.total_s(), motor.drive.pwm_hz, || simulate_and_identify_sensorless(a, global, motor, orders, &p))
+}
+
+fn simulate_and_identify_sensorless(
+    a: &RunArgs,
+    global: &Global,
+    motor: &Profile,
+    orders: &[u16],
+    p: &SensorlessPlan,
+) -> Result<()> {
+    let text = a.format == Format::Text;
+    say!(text, "{p}");
+    let pb = progress(p.runs.len() as u64, global.quiet, "simulating");
+    let t0 = Instant::now();
+    let files = run_sensorless_plan(motor, motor, &a.out, p, a.current_noise, a.seed, &|| pb.inc(1))?;
+    pb.finish_and_clear();
+    say!(text, "simulated {:.1} s of open-loop runs in {:.2} s", p.total_s(), t0.elapsed().as_secs_f64());
+    write_atomic(&a.out.join("plan.txt"), format!("{p}\n").as_bytes())?;
+    write_atomic(&a.out.join("plan.csv"), p.to_csv()?.as_bytes())?;
+    write_atomic(&a.out.join("base.toml"), motor.to_toml_string().as_bytes())?;
+    let name = default_name(motor, "sensorless");
+    let id = identify_simulated(&files, motor, orders, Route::Sensorless, Some(name), &a.out)?;
+    say!(text, "{id}");
+    if a.report {
+        let fit = id.fit_report();
+        for w in write_report(&a.out, &fit.fit, None, Some(&fit.validation), &id.profile.name)? {
+            say!(text, "wrote {}", w.display());
+        }
     }
-    let mut model = Model::of_profile(&base);
-    model.detent = picked
-        .iter()
-        .map(|h| stepdamp_sim::profile::DetentTerm {
-            order: h.order,
-            amplitude_nm: h.amplitude_nm,
-            phase_rad: h.phase_rad,
-        })
-        .collect();
-    let name = a.name.clone().unwrap_or_else(|| default_name(&base, "static"));
-    let out_s = a.out.display().to_string();
-    let profile = model.apply_to(&base, Some(&name), &out_s).map_err(|e| anyhow!("{e}"))?;
-    write_atomic(&a.out, profile.to_toml_string().as_bytes())?;
-    if json {
-        print_json(&report)?;
-    } else {
-        outln!("wrote {out_s} (friction kept from the base profile: a static table does not measure it)");
+    let out = a.out.join("identified.toml");
+    write_atomic(&out, id.profile.to_toml_string().as_bytes())?;
+    if text {
+        for f in &files {
+            outln!("wrote {}", f.display());
+        }
+        outln!("wrote {} and plan.txt, plan.csv, base.toml", out.display());
+    } else if let RouteReport::Sensorless(report) = &id.result {
+        print_json(&SensorlessRun { plan: p, identification: report })?;
     }
     Ok(())
 }

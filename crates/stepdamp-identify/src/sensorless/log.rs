@@ -16,7 +16,6 @@
 use crate::log::columns::{ColumnReader, Columns};
 use crate::log::{KNOWN_COLUMNS, LogError, MAX_ANGLE_RAD};
 use std::io::Read;
-use std::path::Path;
 
 /// The columns a sensorless log must carry, in the order of [`SensorlessLog`]'s fields.
 pub const SENSORLESS_COLUMNS: [&str; 6] = ["t_s", "theta_cmd_rad", "i_a_a", "i_b_a", "v_a_v", "v_b_v"];
@@ -59,48 +58,22 @@ pub struct SensorlessLog {
     pub ignored_columns: Vec<String>,
 }
 
-/// Which route a log's header calls for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum LogKind {
-    /// It has `theta_fb_rad`: an encoder log for the servo route ([`crate::log`]).
-    Encoder,
-    /// No `theta_fb_rad`, but the voltages and currents: the sensorless route.
-    Sensorless,
-}
-
-/// The route a log's header calls for: [`LogKind::Encoder`] when it has `theta_fb_rad`,
-/// [`LogKind::Sensorless`] when it has instead every column of [`SENSORLESS_COLUMNS`]; else
-/// the error of the encoder route (naming what is missing). Reads the header line only.
-pub fn log_kind(path: &Path) -> Result<LogKind, LogError> {
-    let name = path.display().to_string();
-    let file = std::fs::File::open(path).map_err(|source| LogError::Io { path: name.clone(), source })?;
-    let cols = ColumnReader::open(file, &name, &KNOWN_COLUMNS, "empty file: expected a header row")?;
-    if cols.has("theta_fb_rad") {
-        Ok(LogKind::Encoder)
-    } else if cols.has("v_a_v") || cols.has("v_b_v") {
-        // Sensorless intent: a missing current or voltage is reported by the reader.
-        Ok(LogKind::Sensorless)
-    } else {
-        Err(cols.missing("theta_fb_rad", "encoder angle in rad; or, for the sensorless route, v_a_v and v_b_v"))
-    }
-}
-
-/// Reads a sensorless log from a file (streaming, bounded like [`crate::log::read_log`]).
-pub fn read_sensorless_log(path: &Path) -> Result<SensorlessLog, LogError> {
-    let name = path.display().to_string();
-    let file = std::fs::File::open(path).map_err(|source| LogError::Io { path: name.clone(), source })?;
-    parse_sensorless_log(file, &name)
-}
-
 /// Parses a sensorless log from any reader; `source` names it in errors.
 pub fn parse_sensorless_log<R: Read>(reader: R, source: &str) -> Result<SensorlessLog, LogError> {
-    let cols = ColumnReader::open(
-        reader,
-        source,
-        &KNOWN_COLUMNS,
-        "empty file: expected a header row (t_s, theta_cmd_rad, i_a_a, i_b_a, v_a_v, v_b_v)",
-    )?;
+    let cols = ColumnReader::open(reader, source, &KNOWN_COLUMNS, EXPECTED_HEADER)?;
+    sensorless_log_from_columns(cols, source)
+}
+
+/// What an empty sensorless log is told it should have started with.
+pub(crate) const EXPECTED_HEADER: &str =
+    "empty file: expected a header row (t_s, theta_cmd_rad, i_a_a, i_b_a, v_a_v, v_b_v)";
+
+/// The rest of [`parse_sensorless_log`] once the header is read: the same reader goes on
+/// to the rows.
+pub(crate) fn sensorless_log_from_columns<R: Read>(
+    cols: ColumnReader<R>,
+    source: &str,
+) -> Result<SensorlessLog, LogError> {
     for (c, need) in SENSORLESS_COLUMNS.iter().zip(NEEDS) {
         if !cols.has(c) {
             return Err(cols.missing(c, need));
