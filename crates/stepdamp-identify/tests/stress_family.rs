@@ -15,8 +15,8 @@
 //!   tuned on these**; they show whether the rules carry over to motors not looked at. Do not
 //!   retune on them: a failure here is a finding about the rule, to be fixed on the tuning set
 //!   (or on a new held-out set), never by loosening these tolerances. Measured when the set
-//!   was added: motor 1026 fails on `Fs` (docs/identification.md, *Logs no code of this
-//!   repository wrote*).
+//!   was added: motor 1026 failed on `Fs`, fixed by a rule about what the fit uses, not by a
+//!   threshold (docs/identification.md, *Logs no code of this repository wrote*).
 
 mod independent;
 
