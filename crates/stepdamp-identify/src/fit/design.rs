@@ -186,7 +186,6 @@ impl Rows {
         let (log, kin, cols) = (prep.log, &prep.kin, self.cols);
         let (effort, harmonic_gain) = filtered_effort(prep, o)?;
         let wbar = prep.speed;
-        let vmin = o.min_speed_fraction * wbar.abs();
         let blocks = Blocks::of(prep, f64::from(o.pole_pairs));
         // The instrument for J: the part of dω/dt periodic in the fitted orders, this log's
         // own (see the module documentation, *Inertia*).
@@ -198,11 +197,11 @@ impl Rows {
         let nr = f64::from(o.pole_pairs);
         let (mut used, mut stalled, mut max_block) = (0usize, 0usize, 0u32);
         for i in prep.lo..prep.hi {
-            let w = kin.omega_rad_s[i];
-            if w * wbar.signum() < vmin || !prep.keep[i] {
+            if !prep.moves(i, o.min_speed_fraction) {
                 stalled += 1;
                 continue;
             }
+            let w = kin.omega_rad_s[i];
             let th = prep.theta[i];
             let sc = prep.harmonics_at(i);
             cols.fill(&mut self.row, sc, &harmonic_gain, wbar);

@@ -87,7 +87,11 @@
 //!
 //! The friction columns `sgn(ω̄)`, `ω̄` and `1` are constant over each log, so they can only
 //! be told apart by the distinct *levels* (direction, `|ω̄|`) the logs cover; speeds less
-//! than [`SPEED_RATIO`] apart in one direction count as one level. `Fs` is always fitted
+//! than [`SPEED_RATIO`] apart in one direction count as one level. Only the runs the fit
+//! really uses count: a run whose rotor moves in less than
+//! [`MIN_MOVING_PERIODS`](crate::conditions::MIN_MOVING_PERIODS) electrical period's worth of
+//! samples is left out before `D` and `J` are decided ([`crate::conditions`], *Runs that
+//! hardly move*). `Fs` is always fitted
 //! (with one level it absorbs `c` and any error of the `D` held); the others only where the levels separate
 //! them, and a term that is not fitted is held, with a warning naming it and the run to add:
 //!
@@ -194,6 +198,8 @@ pub fn fit(logs: &[RunLog], o: &FitOptions) -> Result<Fit, FitError> {
             viscous_held,
         })
     });
+    // Hook (crate::conditions): runs that hardly move are no speed level.
+    let motion = leave_out_still(&mut prepared);
     // Hook (crate::conditions): fit J or hold the base's, and say which.
     let prepared: Vec<&Prepared> = prepared.iter().collect();
     let speeds: Vec<f64> = prepared.iter().map(|p| p.speed).collect();
@@ -219,9 +225,24 @@ pub fn fit(logs: &[RunLog], o: &FitOptions) -> Result<Fit, FitError> {
             crate::conditions::Decision::InertiaHeld { base: o.inertia_kg_m2, reason: "not fitted".into() }
         }
     };
-    f.warnings.splice(0..0, condition);
+    f.warnings.splice(0..0, condition.into_iter().chain(motion));
     f.decisions.push(decision);
     Ok(f)
+}
+
+/// Leaves out the runs the rotor hardly moves in ([`crate::conditions::runs_without_motion`])
+/// and returns the warning naming them, if any.
+fn leave_out_still(prepared: &mut Vec<Prepared>) -> Option<Warning> {
+    let moving: Vec<f64> = prepared.iter().map(|p| p.moving_periods).collect();
+    let still = crate::conditions::runs_without_motion(&moving);
+    if still.is_empty() {
+        return None;
+    }
+    let runs = still.iter().map(|&i| prepared[i].log.source.clone()).collect();
+    let moving_periods = still.iter().map(|&i| moving[i]).collect();
+    let mut i = 0;
+    prepared.retain(|_| (!still.contains(&i), i += 1).0);
+    Some(Warning::Condition(crate::conditions::Condition::TooLittleMotion { runs, moving_periods }))
 }
 
 fn two_passes(prepared: &[&Prepared], o: &FitOptions) -> Result<Fit, FitError> {

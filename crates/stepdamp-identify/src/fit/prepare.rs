@@ -26,6 +26,9 @@ pub(super) struct Prepared<'a> {
     pub(super) speed: f64,
     /// Electrical periods over the window.
     pub(super) periods: f64,
+    /// Electrical periods' worth of the window's samples the fit uses ([`Prepared::moves`]):
+    /// `periods` times the share of the window used (see [`crate::conditions`]).
+    pub(super) moving_periods: f64,
     /// Encoder steps against the direction of travel in the window, and all steps.
     pub(super) back_steps: usize,
     pub(super) steps: usize,
@@ -39,6 +42,16 @@ pub(super) struct Prepared<'a> {
 }
 
 impl Prepared<'_> {
+    /// Whether the fit uses sample `i` (in `lo..hi`): the rotor moves there at least
+    /// [`FitOptions::min_speed_fraction`] of the mean speed in its direction, and is not
+    /// stuck ([`crate::stick`]). A speed that is not a number is not "too slow": the row is
+    /// built and its torque reported as not finite.
+    #[inline]
+    pub(super) fn moves(&self, i: usize, min_speed_fraction: f64) -> bool {
+        let too_slow = self.kin.omega_rad_s[i] * self.speed.signum() < min_speed_fraction * self.speed.abs();
+        !too_slow && self.keep[i]
+    }
+
     /// `sin(k·Nr·θ), cos(k·Nr·θ)` per order of the fit at sample `i` (in `lo..hi`), in the
     /// order of [`FitOptions::orders`].
     #[inline]
@@ -130,7 +143,7 @@ pub(super) fn prepare<'a>(log: &'a RunLog, o: &FitOptions, kmax: u16) -> Result<
     let keep = edges
         .map_or_else(|| vec![true; n], |e| crate::stick::moving_mask(&e, speed, kin.corner_hz, 1.0 / ts, &o.stick));
     let harmonics = harmonics(&theta[lo..hi], nr, &o.orders);
-    Ok(Prepared {
+    let mut p = Prepared {
         log,
         theta,
         keep,
@@ -140,9 +153,13 @@ pub(super) fn prepare<'a>(log: &'a RunLog, o: &FitOptions, kmax: u16) -> Result<
         hi,
         speed,
         periods,
+        moving_periods: 0.0,
         back_steps,
         steps,
         harmonics,
         periodic: OnceCell::new(),
-    })
+    };
+    let used = (lo..hi).filter(|&i| p.moves(i, o.min_speed_fraction)).count();
+    p.moving_periods = periods * used as f64 / (hi - lo) as f64;
+    Ok(p)
 }
