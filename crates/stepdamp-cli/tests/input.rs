@@ -114,7 +114,8 @@ fn every_file_argument_refuses_an_endless_input_with_one_line() {
     assert_refused(d, &["sweep", "--controller-motor", z, "--out", "out"], &["/dev/zero", "1048576"]);
     assert_refused(
         d,
-        &["identify", "--log", z, "--motor", "patent-motor", "--out", "out/x.toml"],
+        // `--out` in a folder that exists: a bad `--out` is refused before any log is read.
+        &["identify", "--log", z, "--motor", "patent-motor", "--out", "x.toml"],
         &["/dev/zero", "longer than"],
     );
     let args = ["identify", "static", "--table", z, "--sign", "on-rotor", "--motor", "patent-motor", "--out", "x.toml"];

@@ -394,7 +394,7 @@ pub fn parse_klipper(text: &str, what: &str) -> Result<TmcRegisters, ExportError
             let val = val.trim();
             let n: u64 = val.parse().map_err(|_| ExportError::Parse {
                 what: format!("{what}:{}", no + 1),
-                reason: format!("{k} = {val:?}: expected a non-negative integer"),
+                reason: format!("{} = {val:?}: expected a non-negative integer", crate::escape::line(k)),
             })?;
             v.insert(name.to_uppercase(), n);
         }
@@ -616,5 +616,13 @@ mod tests {
         assert_eq!(t.forward[0], [248, 0]);
         assert_eq!(t.forward[256][1], 248);
         assert_eq!(t.forward[512][0], -248);
+    }
+
+    #[test]
+    fn a_key_with_control_bytes_is_quoted_escaped() {
+        // Found by fuzzing: the key went raw into the message (the value was escaped).
+        let e = parse_klipper("driver_MSLUT0\u{0}\u{1b}[2J = x\n", "t.cfg").unwrap_err().to_string();
+        assert!(!e.chars().any(char::is_control), "{e:?}");
+        assert!(e.contains("t.cfg:1") && e.contains("driver_MSLUT0"), "{e}");
     }
 }
