@@ -14,7 +14,7 @@ fn readme_sweep() -> &'static (Vec<f64>, Vec<SweepRow>) {
     static S: OnceLock<(Vec<f64>, Vec<SweepRow>)> = OnceLock::new();
     S.get_or_init(|| {
         let spec = SweepSpec {
-            speeds_rad_s: linear_grid(1.0, 40.0, 60),
+            speeds_rad_s: linear_grid(1.0, 40.0, 60).unwrap(),
             modes: vec![Mode::OpenLoop, Mode::Servo],
             compensations: vec![Compensation::Off, Compensation::Patent],
             run: RunSpec::at(1.0),
@@ -129,7 +129,7 @@ fn halving_the_integration_step_changes_the_sweep_metric_by_under_one_percent() 
 fn sweeps_are_identical_on_any_number_of_threads() {
     let m = patent();
     let spec = SweepSpec {
-        speeds_rad_s: linear_grid(3.0, 9.0, 6),
+        speeds_rad_s: linear_grid(3.0, 9.0, 6).unwrap(),
         modes: vec![Mode::OpenLoop, Mode::Servo],
         compensations: vec![Compensation::Off, Compensation::Patent],
         run: RunSpec { duration_s: 0.3, window_s: 0.1, ..RunSpec::at(1.0) },
@@ -282,7 +282,7 @@ fn holding_current_sets_the_natural_frequency() {
 /// Open-loop sweep over the README grid with the given compensations.
 fn open_loop_sweep(motor: &Profile, controller: &Profile, comps: &[Compensation], load: f64) -> Vec<SweepRow> {
     let spec = SweepSpec {
-        speeds_rad_s: linear_grid(1.0, 40.0, 60),
+        speeds_rad_s: linear_grid(1.0, 40.0, 60).unwrap(),
         modes: vec![Mode::OpenLoop],
         compensations: comps.to_vec(),
         run: RunSpec::at(1.0),
