@@ -494,3 +494,59 @@ fn a_sweep_runs_a_profile_with_every_real_drive_model() {
         assert!(rows.iter().all(|r| r.vel_err_rms_rad_s.is_finite() && !r.lost_sync), "{law}: {rows:?}");
     }
 }
+
+#[test]
+fn a_grid_or_sweep_beyond_max_points_is_refused_naming_the_argument_and_range() {
+    let e = linear_grid(1.0, 40.0, 1_000_000_000_000).unwrap_err().to_string();
+    assert_eq!(e, "points: 1000000000000 must be in 0..=100000");
+    assert_eq!(linear_grid(1.0, 40.0, MAX_POINTS).unwrap().len(), MAX_POINTS);
+    let m = patent();
+    let spec = SweepSpec {
+        speeds_rad_s: vec![5.0; MAX_POINTS + 1],
+        modes: vec![Mode::OpenLoop],
+        compensations: vec![Compensation::Patent],
+        run: RunSpec::at(1.0),
+        options: SimOptions::default(),
+        table: None,
+    };
+    let e = sweep(&m, &m, &spec, &|| {}).unwrap_err().to_string();
+    assert_eq!(e, "speeds: 100001 must be in 0..=100000");
+}
+
+#[test]
+fn a_sweep_stops_when_its_stop_check_says_so_and_is_unchanged_when_it_never_does() {
+    let m = patent();
+    let spec = SweepSpec {
+        speeds_rad_s: linear_grid(3.0, 9.0, 3).unwrap(),
+        modes: vec![Mode::OpenLoop],
+        compensations: vec![Compensation::Off, Compensation::Patent],
+        run: RunSpec { duration_s: 0.3, window_s: 0.1, ..RunSpec::at(1.0) },
+        options: SimOptions::default(),
+        table: None,
+    };
+    let plain = sweep(&m, &m, &spec, &|| {}).unwrap();
+    assert_eq!(sweep_until(&m, &m, &spec, &|| {}, &|| false).unwrap(), plain);
+    // Asked to stop after 100 polls (any thread): the sweep ends with Stopped, no rows.
+    let polls = std::sync::atomic::AtomicUsize::new(0);
+    let stop = || polls.fetch_add(1, std::sync::atomic::Ordering::Relaxed) >= 100;
+    let e = sweep_until(&m, &m, &spec, &|| {}, &stop).unwrap_err();
+    assert!(matches!(e, SimError::Stopped { .. }), "{e:?}");
+}
+
+#[test]
+fn a_run_stops_at_the_period_its_observer_breaks_at() {
+    let m = patent();
+    let new = || ClosedLoop::new(&m, &m, Mode::OpenLoop, Compensation::Patent, &SimOptions::default()).unwrap();
+    let spec = RunSpec { duration_s: 0.3, window_s: 0.1, ..RunSpec::at(5.0) };
+    let pwm = m.drive.pwm_hz;
+    let mut seen = 0;
+    let e = run_while(&mut new(), &spec, pwm, |k, _| {
+        seen += 1;
+        if k == 99 { std::ops::ControlFlow::Break(()) } else { std::ops::ControlFlow::Continue(()) }
+    })
+    .unwrap_err();
+    assert_eq!(seen, 100);
+    assert!(matches!(e, SimError::Stopped { t_s } if t_s == 99.0 / pwm), "{e:?}");
+    let never = run_while(&mut new(), &spec, pwm, |_, _| std::ops::ControlFlow::Continue(())).unwrap();
+    assert_eq!(never, run(&mut new(), &spec, pwm, |_, _| {}).unwrap());
+}
