@@ -34,6 +34,14 @@ def test_a_sweep_of_more_than_max_points_speeds_is_refused_before_any_run():
         stepdamp.sweep(m, "open-loop", "patent", [5.0] * (MAX_POINTS + 1))
 
 
+def test_a_sweep_listing_a_mode_or_compensation_twice_is_refused_not_multiplied():
+    m = stepdamp.Profile.preset("patent-motor")
+    with pytest.raises(StepdampError, match=r"^modes: open-loop is listed twice$"):
+        stepdamp.sweep(m, ["open-loop"] * 10**6, "patent", [5.0])
+    with pytest.raises(StepdampError, match=r"^compensations: patent is listed twice$"):
+        stepdamp.sweep(m, "open-loop", "off,patent,patent", [5.0])
+
+
 def test_a_simulate_whose_log_would_not_fit_in_memory_is_refused_naming_the_duration_and_range():
     m = stepdamp.Profile.preset("patent-motor")
     with pytest.raises(StepdampError, match=r"^duration: 1000000 s must be in \(0, 1250\] s: at 20000 Hz .* 25000000"):

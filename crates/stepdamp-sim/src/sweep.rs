@@ -66,6 +66,12 @@ pub fn check_points(what: &'static str, points: usize) -> Result<(), SimError> {
     }
 }
 
+/// The first item of `items` that an earlier one equals (found within the first few items
+/// of a long list of few distinct values).
+fn first_repeat<T: PartialEq + Copy>(items: &[T]) -> Option<T> {
+    (1..items.len()).find(|&i| items[..i].contains(&items[i])).map(|i| items[i])
+}
+
 /// `points` speeds evenly spaced from `from` to `to` rad/s inclusive; more than
 /// [`MAX_POINTS`] is an error ([`check_points`]).
 pub fn linear_grid(from: f64, to: f64, points: usize) -> Result<Vec<f64>, SimError> {
@@ -100,7 +106,7 @@ impl SweepSpec {
     /// Checks everything the sweep needs before anything is simulated, and builds the
     /// controller of every (mode, compensation) pair: the same hardware in both profiles
     /// ([`check_same_hardware`], naming them `motor_name` and `controller_name`), at least
-    /// one mode, compensation and speed, at most [`MAX_POINTS`] speeds, every speed and the run shape ([`RunSpec::check`]
+    /// one mode, compensation and speed, none of them twice, at most [`MAX_POINTS`] speeds, every speed and the run shape ([`RunSpec::check`]
     /// at the lowest speed), the options ([`SimOptions::check`]), a table when the
     /// compensations include [`Compensation::Table`], and the controller configurations
     /// ([`Profile::controller_config`]). What it returns runs the sweep without checking
@@ -124,6 +130,14 @@ impl SweepSpec {
             return empty("speeds");
         }
         check_points("speeds", self.speeds_rad_s.len())?;
+        // Each mode and compensation once: a list repeats no (mode, compensation) pair, so
+        // the number of runs stays within the distinct pairs times the speeds.
+        if let Some(m) = first_repeat(&self.modes) {
+            return Err(SimError::Option { what: "modes", reason: format!("{} is listed twice", m.name()) });
+        }
+        if let Some(c) = first_repeat(&self.compensations) {
+            return Err(SimError::Option { what: "compensations", reason: format!("{} is listed twice", c.name()) });
+        }
         if !self.modes.contains(&Mode::OpenLoop) {
             for &comp in &self.compensations {
                 check_mode_compensation(Mode::Servo, comp)?;

@@ -511,6 +511,12 @@ fn a_grid_or_sweep_beyond_max_points_is_refused_naming_the_argument_and_range() 
     };
     let e = sweep(&m, &m, &spec, &|| {}).unwrap_err().to_string();
     assert_eq!(e, "speeds: 100001 must be in 0..=100000");
+    // Repeated modes or compensations would multiply the runs (and the rows) for nothing.
+    let twice = SweepSpec { speeds_rad_s: vec![5.0], modes: vec![Mode::OpenLoop; 1_000_000], ..spec.clone() };
+    assert_eq!(sweep(&m, &m, &twice, &|| {}).unwrap_err().to_string(), "modes: open-loop is listed twice");
+    let comps = vec![Compensation::Off, Compensation::Patent, Compensation::Off];
+    let twice = SweepSpec { speeds_rad_s: vec![5.0], compensations: comps, ..spec };
+    assert_eq!(sweep(&m, &m, &twice, &|| {}).unwrap_err().to_string(), "compensations: off is listed twice");
 }
 
 #[test]
