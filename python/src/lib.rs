@@ -1,8 +1,10 @@
 //! Python bindings of stepdamp (`stepdamp._native`). Translation only: every number comes
 //! from a library crate (`stepdamp-sim`, `stepdamp-identify`, `stepdamp-study`); this
-//! crate converts arguments, releases the GIL around the Rust work, and turns Rust errors
-//! into `stepdamp.StepdampError` with the same one-line message.
+//! crate converts arguments, releases the GIL around the Rust work (which Ctrl-C stops:
+//! `cancel`), and turns Rust errors into `stepdamp.StepdampError` with the same one-line
+//! message.
 
+mod cancel;
 mod ident;
 mod profile;
 mod sim;
@@ -28,7 +30,12 @@ pub(crate) fn err(e: impl std::fmt::Display) -> PyErr {
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("StepdampError", m.py().get_type::<StepdampError>())?;
+    // NumPy's C API is looked up now, once: looked up later, a pending KeyboardInterrupt
+    // would make the lookup fail, and rust-numpy panics then.
+    numpy::PyArray1::<f64>::zeros(m.py(), 0, false);
     m.add("PRESETS", stepdamp_sim::PRESETS.to_vec())?;
+    // The most points of a speed grid and speeds of a sweep, from its one home.
+    m.add("MAX_POINTS", stepdamp_sim::MAX_POINTS)?;
     // The run shape's defaults, from their one home (stepdamp_sim::RunSpec).
     m.add("DURATION_S", stepdamp_sim::RunSpec::DURATION_S)?;
     m.add("DWELL_S", stepdamp_sim::RunSpec::DWELL_S)?;

@@ -1,15 +1,17 @@
 //! `simulate`, `sweep`, `linear_grid`, `resonance`.
 
+use crate::cancel::interruptible;
 use crate::err;
 use crate::profile::PyProfile;
 use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use std::ops::ControlFlow;
 use stepdamp_core::Mode;
-use stepdamp_sim::runlog::{FromRecord, LogRow};
+use stepdamp_sim::runlog::{FromRecord, LogRow, check_log_rows};
 use stepdamp_sim::{
     ClosedLoop, Compensation, Profile, RunSpec, SimOptions, SweepSpec, SweepSummary, check_mode_compensation,
-    check_same_hardware, run,
+    check_same_hardware, run_while,
 };
 
 /// A mode by the core's name (`Mode::name`: `open-loop`, `servo`).
@@ -75,32 +77,32 @@ pub fn simulate<'py>(
     let nr = motor.motor.pole_pairs;
     spec.check(pwm, nr).map_err(err)?;
     let opts = options(substeps, current_noise_a, seed, load_torque_nm);
+    // Bounded before the columns are allocated (the whole log is returned in memory).
+    let n = check_log_rows(duration_s, pwm).map_err(err)?;
     let mut lp = ClosedLoop::new(&motor, &ctrl, mode, comp, &opts).map_err(err)?;
-    let n = (duration_s * pwm).round() as usize;
-    let (cols, m) = py
-        .allow_threads(move || -> Result<_, stepdamp_sim::SimError> {
-            let mut cols: [Vec<f64>; 11] = std::array::from_fn(|_| Vec::with_capacity(n));
-            let m = run(&mut lp, &spec, pwm, |k, rec| {
-                let r = LogRow::from_record(k, pwm, nr, rec);
-                for (c, v) in cols.iter_mut().zip([
-                    r.t_s,
-                    r.theta_cmd_rad,
-                    r.theta_fb_rad,
-                    r.omega_fb_rad_s,
-                    r.i_a_a,
-                    r.i_b_a,
-                    r.i_d_a,
-                    r.i_q_a,
-                    r.iq_cmd_a,
-                    r.v_a_v,
-                    r.v_b_v,
-                ]) {
-                    c.push(v);
-                }
-            })?;
-            Ok((cols, m))
-        })
-        .map_err(err)?;
+    let (cols, m) = interruptible(py, move |stop| -> Result<_, stepdamp_sim::SimError> {
+        let mut cols: [Vec<f64>; 11] = std::array::from_fn(|_| Vec::with_capacity(n));
+        let m = run_while(&mut lp, &spec, pwm, |k, rec| {
+            let r = LogRow::from_record(k, pwm, nr, rec);
+            for (c, v) in cols.iter_mut().zip([
+                r.t_s,
+                r.theta_cmd_rad,
+                r.theta_fb_rad,
+                r.omega_fb_rad_s,
+                r.i_a_a,
+                r.i_b_a,
+                r.i_d_a,
+                r.i_q_a,
+                r.iq_cmd_a,
+                r.v_a_v,
+                r.v_b_v,
+            ]) {
+                c.push(v);
+            }
+            if stop() { ControlFlow::Break(()) } else { ControlFlow::Continue(()) }
+        })?;
+        Ok((cols, m))
+    })?;
     let log = PyDict::new(py);
     let names = stepdamp_sim::runlog::LOG_COLUMNS;
     for (name, c) in names.into_iter().zip(cols) {
@@ -115,10 +117,11 @@ pub fn simulate<'py>(
 }
 
 /// `points` speeds evenly spaced from `from_rad_s` to `to_rad_s` inclusive (the CLI's
-/// `--from/--to/--points` grid), rad/s.
+/// `--from/--to/--points` grid), rad/s; more than `stepdamp_sim::MAX_POINTS` is an error.
 #[pyfunction]
-pub fn linear_grid(from_rad_s: f64, to_rad_s: f64, points: usize) -> Vec<f64> {
-    stepdamp_sim::linear_grid(from_rad_s, to_rad_s, points)
+pub fn linear_grid(from_rad_s: f64, to_rad_s: f64, points: u64) -> PyResult<Vec<f64>> {
+    let n = usize::try_from(points).unwrap_or(usize::MAX);
+    stepdamp_sim::linear_grid(from_rad_s, to_rad_s, n).map_err(err)
 }
 
 /// Velocity error against speed (the CLI's `sweep`), in parallel on all cores. Returns
@@ -151,7 +154,7 @@ pub fn sweep<'py>(
         options: options(substeps, current_noise_a, seed, load_torque_nm),
         table: None,
     };
-    let rows = py.allow_threads(|| stepdamp_sim::sweep(&motor, &ctrl, &spec, &|| {})).map_err(err)?;
+    let rows = interruptible(py, |stop| stepdamp_sim::sweep_until(&motor, &ctrl, &spec, &|| {}, stop))?;
     let t = PyDict::new(py);
     t.set_item("mode", rows.iter().map(|r| r.mode.name()).collect::<Vec<_>>())?;
     t.set_item("compensation", rows.iter().map(|r| r.compensation.name()).collect::<Vec<_>>())?;

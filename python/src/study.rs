@@ -1,6 +1,7 @@
 //! Tolerance studies (`stepdamp-study`): load a spec, run a range of variants, summarise.
 //! A study travels between processes as its JSON text.
 
+use crate::cancel::interruptible;
 use crate::err;
 use numpy::PyArray1;
 use pyo3::prelude::*;
@@ -33,12 +34,13 @@ pub fn study_info(json: &str) -> PyResult<(u64, Vec<String>)> {
     Ok((s.spec.variants, s.columns()))
 }
 
-/// Runs variants `start..stop` on all cores (GIL released); returns the rows as a dict of
+/// Runs variants `start..stop` on all cores (GIL released; Ctrl-C stops it,
+/// [`interruptible`]); returns the rows as a dict of
 /// numpy columns, in variant order.
 #[pyfunction]
 pub fn study_run_range<'py>(py: Python<'py>, json: &str, start: u64, stop: u64) -> PyResult<Bound<'py, PyDict>> {
     let s = parse(json)?;
-    let t = py.allow_threads(|| s.run_range(start, stop, &|| {})).map_err(err)?;
+    let t = interruptible(py, |stopped| s.run_range_until(start, stop, &|| {}, stopped))?;
     let d = PyDict::new(py);
     for (j, name) in t.columns.iter().enumerate() {
         d.set_item(name, PyArray1::from_vec(py, t.rows.iter().map(|r| r[j]).collect()))?;

@@ -14,15 +14,18 @@ from __future__ import annotations
 
 import io
 import json
+import math
+import operator
 import os
 from typing import Any, Iterable, Sequence, Union
 
 import numpy as np
 
 from . import _native
-from ._native import PRESETS, Profile, StepdampError
+from ._native import MAX_POINTS, PRESETS, Profile, StepdampError
 
 __all__ = [
+    "MAX_POINTS",
     "PRESETS",
     "Profile",
     "StepdampError",
@@ -102,8 +105,14 @@ def simulate(
 
 def linear_grid(from_rad_s: float, to_rad_s: float, points: int) -> list:
     """``points`` speeds evenly spaced from ``from_rad_s`` to ``to_rad_s`` inclusive, rad/s
-    (the CLI's ``--from/--to/--points`` grid, bit for bit)."""
-    return _native.linear_grid(float(from_rad_s), float(to_rad_s), int(points))
+    (the CLI's ``--from/--to/--points`` grid, bit for bit). ``points`` is an integer in
+    ``0..=MAX_POINTS`` (100 000, the library's bound); more raises :class:`StepdampError`
+    before anything is allocated."""
+    n = operator.index(points)
+    if not 0 <= n < 2**64:
+        # The library's check says the same for a count it can take (a u64).
+        raise StepdampError(f"points: {n} must be in 0..={MAX_POINTS}")
+    return _native.linear_grid(float(from_rad_s), float(to_rad_s), n)
 
 
 class SweepSummary(dict):
@@ -212,7 +221,26 @@ def identify(
     in Ω and ``current_offset_a``, the sampled currents' offset in A).
     """
     args = [_log_arg(log, i) for i, log in enumerate(logs)]
-    return _native.identify(args, base, [int(k) for k in orders], name, sensorless)
+    return _native.identify(args, base, _orders(orders), name, sensorless)
+
+
+def _orders(orders: Sequence[Any]) -> list:
+    """The harmonic orders as integers; a non-integral one (``4.5``) is refused, not truncated."""
+    out = []
+    for k in orders:
+        try:
+            out.append(operator.index(k))
+            continue
+        except TypeError:
+            pass
+        try:
+            f = float(k)
+        except (TypeError, ValueError):
+            f = math.nan
+        if not f.is_integer():
+            raise StepdampError(f"orders: {k!r} is not an integer (a harmonic order per electrical period, e.g. 4)")
+        out.append(int(f))
+    return out
 
 
 def ripple(profile: Profile, i_d_a: float, i_q_a: float) -> dict:

@@ -12,6 +12,8 @@ DWELL_S: float
 """Default standstill before the ramp, s."""
 RAMP_S: float
 """Default ramp from rest, s."""
+MAX_POINTS: int
+"""Most points of a speed grid and speeds of a sweep (stepdamp_sim::MAX_POINTS)."""
 PRESETS: List[str]
 
 class StepdampError(ValueError):

@@ -12,6 +12,7 @@ runs in this process (on all cores). Variant ``i`` depends only on the study see
 
 from __future__ import annotations
 
+import importlib
 import json
 import math
 import os
@@ -70,14 +71,14 @@ class StudyResult:
 
     def to_parquet(self, path: Union[str, "os.PathLike[str]"]) -> None:
         """Writes the table as Parquet (pyarrow)."""
+        _extra("pyarrow")
         self.table.to_parquet(os.fspath(path), engine="pyarrow", index=False)
 
     def plot_cdf(self, path: Union[str, "os.PathLike[str]", None] = None, dpi: int = 80):
         """Plots the CDF of the reduction at each resonance, one panel per resonance, one
         curve per mode and compensation (log x axis; the threshold and 1× marked). Saves
         to ``path`` when given; returns the matplotlib figure."""
-        import matplotlib
-
+        matplotlib = _extra("matplotlib")
         if path is not None:
             matplotlib.use("Agg", force=False)
         import matplotlib.pyplot as plt
@@ -108,6 +109,19 @@ class StudyResult:
         return fig
 
 
+def _extra(module: str):
+    """Imports ``module`` of the ``[study]`` extra; if it is missing, the error names the
+    extra and the command that installs it."""
+    try:
+        return importlib.import_module(module)
+    except ImportError as e:
+        raise ModuleNotFoundError(
+            f"stepdamp.study needs the optional [study] extra ({module} is missing): "
+            "pip install 'stepdamp[study]'",
+            name=module,
+        ) from e
+
+
 def _chunks(n: int, size: int):
     return [(lo, min(n, lo + size)) for lo in range(0, n, size)]
 
@@ -133,6 +147,13 @@ def study(
     Dask task. ``out``: a directory to write ``study.parquet``, ``study-cdf.png`` and
     ``study-summary.json`` into.
     """
+    # The extra's modules this call needs, before any work.
+    pd = _extra("pandas")
+    if dask:
+        distributed = _extra("dask.distributed")
+    if out is not None:
+        _extra("pyarrow")
+        _extra("matplotlib")
     study_json = load_spec(spec)
     n, columns = _native.study_info(study_json)
     if not (isinstance(chunk_size, int) and chunk_size >= 1):
@@ -142,8 +163,7 @@ def study(
     if not dask:
         parts = [run_chunk(study_json, lo, hi) for lo, hi in chunks]
     else:
-        from dask.distributed import Client, LocalCluster
-
+        Client, LocalCluster = distributed.Client, distributed.LocalCluster
         own_cluster = own_client = None
         try:
             if client is None:
@@ -167,8 +187,6 @@ def study(
     order = np.argsort(merged["variant"], kind="stable")
     merged = {c: v[order] for c, v in merged.items()}
     summary_json, report = _native.study_summarize(study_json, {c: v.tolist() for c, v in merged.items()})
-    import pandas as pd
-
     table = pd.DataFrame(merged, copy=False)
     table["variant"] = table["variant"].astype(np.int64)
     result = StudyResult(table=table, summary=json.loads(summary_json), report=report, wall_s=wall,

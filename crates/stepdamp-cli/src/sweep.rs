@@ -11,7 +11,8 @@ use std::path::PathBuf;
 use std::time::Instant;
 use stepdamp_core::Mode;
 use stepdamp_sim::{
-    Compensation, RunSpec, SimError, SimOptions, SweepRow, SweepSpec, SweepSummary, check_substeps, linear_grid,
+    Compensation, MAX_POINTS, RunSpec, SimError, SimOptions, SweepRow, SweepSpec, SweepSummary, check_substeps,
+    linear_grid,
 };
 
 /// Arguments of `stepdamp sweep`.
@@ -85,15 +86,15 @@ pub fn spec_of(a: &SweepArgs) -> Result<SweepSpec> {
     if a.points < 2 {
         bail!("--points {}: need at least 2 speeds", a.points);
     }
-    if a.points > 100_000 {
-        bail!("--points {}: at most 100000", a.points);
+    if a.points > MAX_POINTS as i64 {
+        bail!("--points {}: at most {MAX_POINTS}", a.points);
     }
     if !(a.duration.is_finite() && a.duration >= 0.2 && a.duration <= 1000.0) {
         bail!("--duration {}: must be between 0.2 and 1000 s", a.duration);
     }
     let substeps = check_substeps(a.substeps).map_err(flag_error)?;
     Ok(SweepSpec {
-        speeds_rad_s: linear_grid(a.from, a.to, a.points as usize),
+        speeds_rad_s: linear_grid(a.from, a.to, a.points as usize)?,
         modes: a.mode.items.clone(),
         compensations: a.compensation.items.clone(),
         run: RunSpec::for_duration(a.from, a.duration),

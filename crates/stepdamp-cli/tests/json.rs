@@ -62,7 +62,7 @@ fn sweep_json_is_the_library_sweep_summary() {
     // The same sweep through the library: the CLI's run shape for --duration 0.3.
     let motor = Profile::preset("patent-motor").unwrap();
     let spec = SweepSpec {
-        speeds_rad_s: linear_grid(4.0, 9.0, 3),
+        speeds_rad_s: linear_grid(4.0, 9.0, 3).unwrap(),
         modes: vec![Mode::OpenLoop],
         compensations: vec![Compensation::Off, Compensation::Patent],
         run: RunSpec::for_duration(4.0, 0.3),

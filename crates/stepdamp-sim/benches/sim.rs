@@ -52,7 +52,7 @@ fn bench(c: &mut Criterion) {
     g.finish();
 
     let spec = SweepSpec {
-        speeds_rad_s: linear_grid(1.0, 40.0, 60),
+        speeds_rad_s: linear_grid(1.0, 40.0, 60).unwrap(),
         modes: vec![Mode::OpenLoop, Mode::Servo],
         compensations: vec![Compensation::Off, Compensation::Patent],
         run: RunSpec::at(1.0),

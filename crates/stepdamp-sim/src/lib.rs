@@ -37,17 +37,19 @@ pub mod summary;
 pub mod sweep;
 
 pub use closed_loop::{ClosedLoop, PeriodRecord};
-pub use lockstep::run_lockstep;
+pub use lockstep::{run_lockstep, run_lockstep_while};
 pub use metrics::RunMetrics;
 pub use options::{
     ESTIMATED_IS_OPEN_LOOP_ONLY, SimError, SimOptions, check_mode_compensation, check_same_hardware, check_substeps,
 };
 pub use plant::{PlantParams, PlantState};
 pub use profile::{PRESETS, Profile, ProfileError};
-pub use scenario::{RunSpec, SETTLE_S, check_speed, max_speed_rad_s, run};
+pub use scenario::{RunSpec, SETTLE_S, check_speed, max_speed_rad_s, run, run_while};
 pub use stepdamp_core::{Compensation, CorrectionTable, Mode};
 pub use summary::SweepSummary;
-pub use sweep::{CheckedSweep, SweepRow, SweepSpec, derived_seed, linear_grid, sweep};
+pub use sweep::{
+    CheckedSweep, MAX_POINTS, SweepRow, SweepSpec, check_points, derived_seed, linear_grid, sweep, sweep_until,
+};
 
 #[cfg(test)]
 mod flux_tests;

@@ -22,6 +22,18 @@ pub fn run_lockstep<const N: usize>(
     specs: &[RunSpec],
     pwm_hz: f64,
 ) -> Result<Vec<Result<RunMetrics, SimError>>, SimError> {
+    run_lockstep_while::<N>(loops, specs, pwm_hz, &|| false)
+}
+
+/// [`run_lockstep`] that asks `stop` before every control period and ends all the runs
+/// with the outer error [`SimError::Stopped`] when it returns true (a cancellation hook,
+/// e.g. for Ctrl-C; it does not change the periods that are run).
+pub fn run_lockstep_while<const N: usize>(
+    loops: &mut [ClosedLoop],
+    specs: &[RunSpec],
+    pwm_hz: f64,
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Result<Vec<Result<RunMetrics, SimError>>, SimError> {
     let mismatch = |reason: &str| SimError::Option { what: "lock-step runs", reason: reason.to_string() };
     if loops.len() != N || specs.len() != N {
         return Err(mismatch(&format!("{} loops and {} runs for {N} lanes", loops.len(), specs.len())));
@@ -45,6 +57,9 @@ pub fn run_lockstep<const N: usize>(
     // The plants live in the lanes; each loop gets a copy of its lane to sample.
     let mut x = StateLanes::<N>::from_states(&std::array::from_fn(|i| loops[i].x));
     for k in 0..n {
+        if stop() {
+            return Err(SimError::Stopped { t_s: meters[0].time(k) });
+        }
         for i in 0..N {
             let w_cmd = specs[i].speed_at(meters[i].time(k));
             let (rec, a, b) = loops[i].control(w_cmd);

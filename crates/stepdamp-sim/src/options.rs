@@ -105,6 +105,14 @@ pub enum SimError {
         /// What diverged, e.g. `rotor speed ω = NaN rad/s`, after the run's name if any.
         what: String,
     },
+    /// The caller asked the run or sweep to stop before its end (its `stop` check returned
+    /// true, e.g. on Ctrl-C in the Python binding; [`crate::scenario::run_while`],
+    /// [`crate::sweep::sweep_until`]). No result is returned.
+    #[error("stopped at t = {t_s} s before the end of the run, as the caller asked")]
+    Stopped {
+        /// Simulated time in s of the period where the run stopped.
+        t_s: f64,
+    },
     /// A combination of control mode and compensation that does not exist.
     #[error("compensation {comp} in {mode} mode: {reason}")]
     Unsupported {

@@ -2,6 +2,7 @@
 //! made here from a simulated period.
 
 use crate::closed_loop::PeriodRecord;
+use crate::options::SimError;
 pub use stepdamp_profile::runlog::{LOG_COLUMNS, LogRow, write_csv};
 
 /// A log row from a simulated period.
@@ -29,4 +30,27 @@ impl FromRecord for LogRow {
             v_b_v: r.v_b_v,
         }
     }
+}
+
+/// Most rows of a run log held in memory (the Python binding's `simulate` returns the whole
+/// log): 25 000 000 rows, 2.2 GB of [`LOG_COLUMNS`] `f64` columns, 1250 s at 20 kHz. The
+/// CLI writes its log row by row and needs no such bound.
+pub const MAX_LOG_ROWS: usize = 25_000_000;
+
+/// Checks that a run of `duration_s` s at `pwm_hz` Hz logs at most [`MAX_LOG_ROWS`] rows
+/// (one per control period, [`crate::RunSpec::periods`]), before they are allocated; returns
+/// the number of rows.
+pub fn check_log_rows(duration_s: f64, pwm_hz: f64) -> Result<usize, SimError> {
+    let n = (duration_s * pwm_hz).round();
+    if n.is_finite() && n >= 0.0 && n <= MAX_LOG_ROWS as f64 {
+        return Ok(n as usize);
+    }
+    let max_s = MAX_LOG_ROWS as f64 / pwm_hz;
+    Err(SimError::Option {
+        what: "duration",
+        reason: format!(
+            "{duration_s} s must be in (0, {max_s}] s: at {pwm_hz} Hz it would log {n} rows, more than the \
+             {MAX_LOG_ROWS} held in memory"
+        ),
+    })
 }

@@ -14,6 +14,7 @@
 use crate::closed_loop::{ClosedLoop, PeriodRecord};
 use crate::metrics::{RunMetrics, VelocityErrorMeter};
 use crate::options::SimError;
+use std::ops::ControlFlow;
 
 /// Largest commanded speed in rad/s a run of a motor with `pole_pairs` at `pwm_hz` accepts
 /// (either sign): the controller's own limit ([`stepdamp_core::max_speed_rad_s`]; beyond it
@@ -179,6 +180,21 @@ pub fn run(
     pwm_hz: f64,
     mut observe: impl FnMut(usize, &PeriodRecord),
 ) -> Result<RunMetrics, SimError> {
+    run_while(lp, spec, pwm_hz, |k, rec| {
+        observe(k, rec);
+        ControlFlow::Continue(())
+    })
+}
+
+/// [`run`] whose `observe` may end the run early: after a period it returns
+/// [`ControlFlow::Break`] for, the run stops with [`SimError::Stopped`] (a cancellation
+/// hook, e.g. for Ctrl-C; the periods before are the same as [`run`]'s).
+pub fn run_while(
+    lp: &mut ClosedLoop,
+    spec: &RunSpec,
+    pwm_hz: f64,
+    mut observe: impl FnMut(usize, &PeriodRecord) -> ControlFlow<()>,
+) -> Result<RunMetrics, SimError> {
     let mut meter = VelocityErrorMeter::new(spec.periods(pwm_hz, lp.pole_pairs()), pwm_hz, lp.pole_pairs());
     for k in 0..meter.periods() {
         let w_cmd = spec.speed_at(meter.time(k));
@@ -187,7 +203,9 @@ pub fn run(
         // by `check`), not the f64 one asked for.
         let w_ctl = f64::from(lp.controller_state().speed_command_rad_s());
         meter.add(k, w_ctl, &rec)?;
-        observe(k, &rec);
+        if observe(k, &rec).is_break() {
+            return Err(SimError::Stopped { t_s: meter.time(k) });
+        }
     }
     Ok(meter.finish())
 }

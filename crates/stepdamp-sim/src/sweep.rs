@@ -7,7 +7,7 @@
 
 use crate::closed_loop::ClosedLoop;
 use crate::lanes::LANES;
-use crate::lockstep::run_lockstep;
+use crate::lockstep::run_lockstep_while;
 use crate::options::{SimError, SimOptions, check_mode_compensation, check_same_hardware};
 use crate::profile::Profile;
 use crate::scenario::{RunSpec, check_speed, max_speed_rad_s};
@@ -50,13 +50,37 @@ pub struct SweepRow {
     pub lost_sync: bool,
 }
 
-/// `points` speeds evenly spaced from `from` to `to` rad/s inclusive.
-pub fn linear_grid(from: f64, to: f64, points: usize) -> Vec<f64> {
-    match points {
+/// Most points of a speed grid ([`linear_grid`]) and most speeds of a sweep
+/// ([`SweepSpec::validate`]): 100 000, far beyond any resolution a sweep needs (the README's
+/// has 60), and small enough that the grid and the sweep's table fit in memory. Every
+/// front end (CLI, Python) refuses more with the same bound.
+pub const MAX_POINTS: usize = 100_000;
+
+/// Checks the size `points` of a grid or a list of speeds (the argument named `what` in the
+/// error) against [`MAX_POINTS`], before anything of that size is allocated.
+pub fn check_points(what: &'static str, points: usize) -> Result<(), SimError> {
+    if points <= MAX_POINTS {
+        Ok(())
+    } else {
+        Err(SimError::Option { what, reason: format!("{points} must be in 0..={MAX_POINTS}") })
+    }
+}
+
+/// The first item of `items` that an earlier one equals (found within the first few items
+/// of a long list of few distinct values).
+fn first_repeat<T: PartialEq + Copy>(items: &[T]) -> Option<T> {
+    (1..items.len()).find(|&i| items[..i].contains(&items[i])).map(|i| items[i])
+}
+
+/// `points` speeds evenly spaced from `from` to `to` rad/s inclusive; more than
+/// [`MAX_POINTS`] is an error ([`check_points`]).
+pub fn linear_grid(from: f64, to: f64, points: usize) -> Result<Vec<f64>, SimError> {
+    check_points("points", points)?;
+    Ok(match points {
         0 => vec![],
         1 => vec![from],
         _ => (0..points).map(|i| from + (to - from) * i as f64 / (points - 1) as f64).collect(),
-    }
+    })
 }
 
 impl SweepSpec {
@@ -82,7 +106,7 @@ impl SweepSpec {
     /// Checks everything the sweep needs before anything is simulated, and builds the
     /// controller of every (mode, compensation) pair: the same hardware in both profiles
     /// ([`check_same_hardware`], naming them `motor_name` and `controller_name`), at least
-    /// one mode, compensation and speed, every speed and the run shape ([`RunSpec::check`]
+    /// one mode, compensation and speed, none of them twice, at most [`MAX_POINTS`] speeds, every speed and the run shape ([`RunSpec::check`]
     /// at the lowest speed), the options ([`SimOptions::check`]), a table when the
     /// compensations include [`Compensation::Table`], and the controller configurations
     /// ([`Profile::controller_config`]). What it returns runs the sweep without checking
@@ -104,6 +128,15 @@ impl SweepSpec {
         }
         if self.speeds_rad_s.is_empty() {
             return empty("speeds");
+        }
+        check_points("speeds", self.speeds_rad_s.len())?;
+        // Each mode and compensation once: a list repeats no (mode, compensation) pair, so
+        // the number of runs stays within the distinct pairs times the speeds.
+        if let Some(m) = first_repeat(&self.modes) {
+            return Err(SimError::Option { what: "modes", reason: format!("{} is listed twice", m.name()) });
+        }
+        if let Some(c) = first_repeat(&self.compensations) {
+            return Err(SimError::Option { what: "compensations", reason: format!("{} is listed twice", c.name()) });
         }
         if !self.modes.contains(&Mode::OpenLoop) {
             for &comp in &self.compensations {
@@ -151,16 +184,39 @@ pub fn sweep(
     spec: &SweepSpec,
     tick: &(dyn Fn() + Sync),
 ) -> Result<Vec<SweepRow>, SimError> {
-    spec.validate(motor, &motor.name, controller, &controller.name)?.run(tick)
+    sweep_until(motor, controller, spec, tick, &|| false)
+}
+
+/// [`sweep`] with a cancellation hook: `stop` is asked before every control period
+/// ([`CheckedSweep::run_until`]).
+pub fn sweep_until(
+    motor: &Profile,
+    controller: &Profile,
+    spec: &SweepSpec,
+    tick: &(dyn Fn() + Sync),
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Result<Vec<SweepRow>, SimError> {
+    spec.validate(motor, &motor.name, controller, &controller.name)?.run_until(tick, stop)
 }
 
 impl CheckedSweep<'_> {
     /// Runs the sweep; `tick` is called once per finished run (from any thread). Runs go
-    /// [`LANES`] at a time in lock-step ([`run_lockstep`], one run per SIMD lane); a run
+    /// [`LANES`] at a time in lock-step ([`crate::lockstep::run_lockstep`], one run per SIMD lane); a run
     /// that diverges makes the sweep fail with [`SimError::Diverged`] naming it. Rows come
     /// ordered by mode, then compensation, then speed; servo runs with estimated-angle
     /// compensation are not made ([`SweepSpec::pairs`]).
     pub fn run(&self, tick: &(dyn Fn() + Sync)) -> Result<Vec<SweepRow>, SimError> {
+        self.run_until(tick, &|| false)
+    }
+
+    /// [`CheckedSweep::run`] that asks `stop` before every control period (from any
+    /// thread) and, once it returns true, ends the sweep with [`SimError::Stopped`] within
+    /// one period of each run in progress (a cancellation hook, e.g. for Ctrl-C).
+    pub fn run_until(
+        &self,
+        tick: &(dyn Fn() + Sync),
+        stop: &(dyn Fn() -> bool + Sync),
+    ) -> Result<Vec<SweepRow>, SimError> {
         let (motor, spec) = (self.motor, self.spec);
         let mut runs = Vec::new();
         for &(mode, comp, ref cfg) in &self.configs {
@@ -186,7 +242,7 @@ impl CheckedSweep<'_> {
                     loops.push(ClosedLoop::with_config(motor, *cfg, &opts)?);
                     specs.push(RunSpec { speed_rad_s: w, ..spec.run });
                 }
-                let metrics = run_lockstep::<LANES>(&mut loops, &specs, pwm)?;
+                let metrics = run_lockstep_while::<LANES>(&mut loops, &specs, pwm, stop)?;
                 let rows = chunk
                     .iter()
                     .zip(metrics)

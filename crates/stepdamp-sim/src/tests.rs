@@ -14,7 +14,7 @@ fn readme_sweep() -> &'static (Vec<f64>, Vec<SweepRow>) {
     static S: OnceLock<(Vec<f64>, Vec<SweepRow>)> = OnceLock::new();
     S.get_or_init(|| {
         let spec = SweepSpec {
-            speeds_rad_s: linear_grid(1.0, 40.0, 60),
+            speeds_rad_s: linear_grid(1.0, 40.0, 60).unwrap(),
             modes: vec![Mode::OpenLoop, Mode::Servo],
             compensations: vec![Compensation::Off, Compensation::Patent],
             run: RunSpec::at(1.0),
@@ -129,7 +129,7 @@ fn halving_the_integration_step_changes_the_sweep_metric_by_under_one_percent() 
 fn sweeps_are_identical_on_any_number_of_threads() {
     let m = patent();
     let spec = SweepSpec {
-        speeds_rad_s: linear_grid(3.0, 9.0, 6),
+        speeds_rad_s: linear_grid(3.0, 9.0, 6).unwrap(),
         modes: vec![Mode::OpenLoop, Mode::Servo],
         compensations: vec![Compensation::Off, Compensation::Patent],
         run: RunSpec { duration_s: 0.3, window_s: 0.1, ..RunSpec::at(1.0) },
@@ -282,7 +282,7 @@ fn holding_current_sets_the_natural_frequency() {
 /// Open-loop sweep over the README grid with the given compensations.
 fn open_loop_sweep(motor: &Profile, controller: &Profile, comps: &[Compensation], load: f64) -> Vec<SweepRow> {
     let spec = SweepSpec {
-        speeds_rad_s: linear_grid(1.0, 40.0, 60),
+        speeds_rad_s: linear_grid(1.0, 40.0, 60).unwrap(),
         modes: vec![Mode::OpenLoop],
         compensations: comps.to_vec(),
         run: RunSpec::at(1.0),
@@ -493,4 +493,66 @@ fn a_sweep_runs_a_profile_with_every_real_drive_model() {
         assert_eq!(rows.len(), 4);
         assert!(rows.iter().all(|r| r.vel_err_rms_rad_s.is_finite() && !r.lost_sync), "{law}: {rows:?}");
     }
+}
+
+#[test]
+fn a_grid_or_sweep_beyond_max_points_is_refused_naming_the_argument_and_range() {
+    let e = linear_grid(1.0, 40.0, 1_000_000_000_000).unwrap_err().to_string();
+    assert_eq!(e, "points: 1000000000000 must be in 0..=100000");
+    assert_eq!(linear_grid(1.0, 40.0, MAX_POINTS).unwrap().len(), MAX_POINTS);
+    let m = patent();
+    let spec = SweepSpec {
+        speeds_rad_s: vec![5.0; MAX_POINTS + 1],
+        modes: vec![Mode::OpenLoop],
+        compensations: vec![Compensation::Patent],
+        run: RunSpec::at(1.0),
+        options: SimOptions::default(),
+        table: None,
+    };
+    let e = sweep(&m, &m, &spec, &|| {}).unwrap_err().to_string();
+    assert_eq!(e, "speeds: 100001 must be in 0..=100000");
+    // Repeated modes or compensations would multiply the runs (and the rows) for nothing.
+    let twice = SweepSpec { speeds_rad_s: vec![5.0], modes: vec![Mode::OpenLoop; 1_000_000], ..spec.clone() };
+    assert_eq!(sweep(&m, &m, &twice, &|| {}).unwrap_err().to_string(), "modes: open-loop is listed twice");
+    let comps = vec![Compensation::Off, Compensation::Patent, Compensation::Off];
+    let twice = SweepSpec { speeds_rad_s: vec![5.0], compensations: comps, ..spec };
+    assert_eq!(sweep(&m, &m, &twice, &|| {}).unwrap_err().to_string(), "compensations: off is listed twice");
+}
+
+#[test]
+fn a_sweep_stops_when_its_stop_check_says_so_and_is_unchanged_when_it_never_does() {
+    let m = patent();
+    let spec = SweepSpec {
+        speeds_rad_s: linear_grid(3.0, 9.0, 3).unwrap(),
+        modes: vec![Mode::OpenLoop],
+        compensations: vec![Compensation::Off, Compensation::Patent],
+        run: RunSpec { duration_s: 0.3, window_s: 0.1, ..RunSpec::at(1.0) },
+        options: SimOptions::default(),
+        table: None,
+    };
+    let plain = sweep(&m, &m, &spec, &|| {}).unwrap();
+    assert_eq!(sweep_until(&m, &m, &spec, &|| {}, &|| false).unwrap(), plain);
+    // Asked to stop after 100 polls (any thread): the sweep ends with Stopped, no rows.
+    let polls = std::sync::atomic::AtomicUsize::new(0);
+    let stop = || polls.fetch_add(1, std::sync::atomic::Ordering::Relaxed) >= 100;
+    let e = sweep_until(&m, &m, &spec, &|| {}, &stop).unwrap_err();
+    assert!(matches!(e, SimError::Stopped { .. }), "{e:?}");
+}
+
+#[test]
+fn a_run_stops_at_the_period_its_observer_breaks_at() {
+    let m = patent();
+    let new = || ClosedLoop::new(&m, &m, Mode::OpenLoop, Compensation::Patent, &SimOptions::default()).unwrap();
+    let spec = RunSpec { duration_s: 0.3, window_s: 0.1, ..RunSpec::at(5.0) };
+    let pwm = m.drive.pwm_hz;
+    let mut seen = 0;
+    let e = run_while(&mut new(), &spec, pwm, |k, _| {
+        seen += 1;
+        if k == 99 { std::ops::ControlFlow::Break(()) } else { std::ops::ControlFlow::Continue(()) }
+    })
+    .unwrap_err();
+    assert_eq!(seen, 100);
+    assert!(matches!(e, SimError::Stopped { t_s } if t_s == 99.0 / pwm), "{e:?}");
+    let never = run_while(&mut new(), &spec, pwm, |_, _| std::ops::ControlFlow::Continue(())).unwrap();
+    assert_eq!(never, run(&mut new(), &spec, pwm, |_, _| {}).unwrap());
 }

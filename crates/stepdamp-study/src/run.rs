@@ -13,7 +13,7 @@ use rayon::prelude::*;
 use stepdamp_sim::profile::ProfileData;
 use stepdamp_sim::profile::name::derived_name;
 use stepdamp_sim::sweep::derived_seed;
-use stepdamp_sim::{Profile, RunSpec, SimOptions, SweepRow, SweepSpec, linear_grid, sweep};
+use stepdamp_sim::{Profile, RunSpec, SimOptions, SweepRow, SweepSpec, linear_grid, sweep_until};
 
 /// One drawn motor variant.
 #[derive(Clone, Debug, PartialEq)]
@@ -112,7 +112,9 @@ impl Study {
         let mut out = Vec::new();
         for &k in &self.orders {
             let w = v.plant.resonance_speed_rad_s(k);
-            out.extend(linear_grid(w * (1.0 - s.span), w * (1.0 + s.span), s.points));
+            // `points` is in 1..=50 (`SweepSection::check`, also for a study from JSON),
+            // far below the grid's bound.
+            out.extend(linear_grid(w * (1.0 - s.span), w * (1.0 + s.span), s.points).expect("sweep.points ≤ 50"));
             if s.points == 1 {
                 *out.last_mut().expect("one point pushed") = w;
             }
@@ -224,9 +226,15 @@ impl Study {
 
     /// Runs variant `index` and returns its row (in [`Study::columns`] order).
     pub fn run_variant(&self, index: u64) -> Result<Vec<f64>, StudyError> {
+        self.run_variant_until(index, &|| false)
+    }
+
+    /// [`Study::run_variant`] that stops with an error once `stop` returns true (asked
+    /// before every control period, [`stepdamp_sim::sweep_until`]).
+    fn run_variant_until(&self, index: u64, stop: &(dyn Fn() -> bool + Sync)) -> Result<Vec<f64>, StudyError> {
         let v = self.variant(index)?;
         let spec = self.sweep_spec(&v);
-        let rows = sweep(&v.plant, &v.controller, &spec, &|| {})
+        let rows = sweep_until(&v.plant, &v.controller, &spec, &|| {}, stop)
             .map_err(|e| StudyError::Variant { index, message: e.to_string() })?;
         let mut out = vec![index as f64];
         out.extend(self.params(&v));
@@ -263,6 +271,19 @@ impl Study {
     /// Runs variants `from..to` in parallel (rayon) and returns their rows in index order;
     /// `tick` is called once per finished variant (from any thread).
     pub fn run_range(&self, from: u64, to: u64, tick: &(dyn Fn() + Sync)) -> Result<Table, StudyError> {
+        self.run_range_until(from, to, tick, &|| false)
+    }
+
+    /// [`Study::run_range`] with a cancellation hook: `stop` is asked before every control
+    /// period (from any thread); once it returns true the runs in progress end within a
+    /// period and the call returns an error (e.g. for Ctrl-C in the Python binding).
+    pub fn run_range_until(
+        &self,
+        from: u64,
+        to: u64,
+        tick: &(dyn Fn() + Sync),
+        stop: &(dyn Fn() -> bool + Sync),
+    ) -> Result<Table, StudyError> {
         if from > to || to > self.spec.variants {
             return Err(StudyError::Table(format!(
                 "variants {from}..{to}: outside the study's 0..{}",
@@ -272,7 +293,7 @@ impl Study {
         let rows = (from..to)
             .into_par_iter()
             .map(|i| {
-                let r = self.run_variant(i);
+                let r = self.run_variant_until(i, stop);
                 tick();
                 r
             })

@@ -242,6 +242,17 @@ fn one() -> u64 {
 /// Largest number of variants a study accepts.
 pub const MAX_VARIANTS: u64 = 10_000_000;
 
+impl StudySpec {
+    /// Checks what sets the study's size: `variants` in 1..=[`MAX_VARIANTS`] and the sweep
+    /// section (points, duration, substeps …); the error is the message.
+    fn check_sizes(&self) -> Result<(), String> {
+        if !(1..=MAX_VARIANTS).contains(&self.variants) {
+            return Err(format!("variants = {}: must be in 1..={MAX_VARIANTS}", self.variants));
+        }
+        self.sweep.check()
+    }
+}
+
 /// Why a study cannot run. Every message names the file and the key.
 #[derive(Debug, thiserror::Error)]
 pub enum StudyError {
@@ -318,10 +329,7 @@ impl Study {
         let bad = |message: String| StudyError::Spec { origin: origin.to_string(), message };
         let spec: StudySpec = toml::from_str(text).map_err(|e| bad(one_line(&e.to_string())))?;
         let nominal = nominal_motor(&spec.motor, origin, base_dir)?;
-        if !(1..=MAX_VARIANTS).contains(&spec.variants) {
-            return Err(bad(format!("variants = {}: must be in 1..={MAX_VARIANTS}", spec.variants)));
-        }
-        spec.sweep.check().map_err(bad)?;
+        spec.check_sizes().map_err(bad)?;
         let orders = spec.sweep.orders_for(&nominal).map_err(bad)?;
         spec.plant.check("plant").map_err(bad)?;
         spec.controller_error.check("controller_error").map_err(bad)?;
@@ -351,9 +359,13 @@ impl Study {
     }
 
     /// A study from [`Study::to_json`].
+    /// Its sizes are checked again as for a spec file (the number of variants, the sweep
+    /// section), so that JSON written by hand cannot ask for more than a spec can.
     pub fn from_json(text: &str) -> Result<Study, StudyError> {
-        serde_json::from_str(text)
-            .map_err(|e| StudyError::Spec { origin: "study JSON".into(), message: one_line(&e.to_string()) })
+        let bad = |message: String| StudyError::Spec { origin: "study JSON".into(), message };
+        let study: Study = serde_json::from_str(text).map_err(|e| bad(one_line(&e.to_string())))?;
+        study.spec.check_sizes().map_err(bad)?;
+        Ok(study)
     }
 
     /// The modes run, in table order.

@@ -186,3 +186,24 @@ fn an_endless_spec_is_refused_after_the_spec_limit() {
     let e = Study::load(Path::new("/dev/zero")).unwrap_err().to_string();
     assert!(e.contains("/dev/zero") && e.contains(&crate::spec::MAX_SPEC_BYTES.to_string()), "{e}");
 }
+
+#[test]
+fn a_study_from_json_is_held_to_the_size_bounds_of_a_spec_file() {
+    let s = study("");
+    assert_eq!(Study::from_json(&s.to_json()).unwrap().to_json(), s.to_json());
+    let mut big = study("");
+    big.spec.variants = 1_000_000_000_000_000;
+    let e = Study::from_json(&big.to_json()).unwrap_err().to_string();
+    assert!(e.contains("variants = 1000000000000000: must be in 1..=10000000"), "{e}");
+    let mut wide = study("");
+    wide.spec.sweep.points = 1_000_000_000_000;
+    let e = Study::from_json(&wide.to_json()).unwrap_err().to_string();
+    assert!(e.contains("sweep.points = 1000000000000: must be in 1..=50"), "{e}");
+}
+
+#[test]
+fn a_study_range_stops_when_its_stop_check_says_so() {
+    let s = study("");
+    let e = s.run_range_until(0, 2, &|| {}, &|| true).unwrap_err().to_string();
+    assert!(e.contains("stopped at t = 0 s"), "{e}");
+}

@@ -1,0 +1,136 @@
+"""Hostile use: sizes beyond the library's bounds, Ctrl-C during long calls, nonsense
+arguments and a missing optional extra are refused with a Python exception, never an abort
+or a panic (docs/python.md#errors-and-limits)."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import pytest
+
+import stepdamp
+from stepdamp import MAX_POINTS, StepdampError
+
+from test_study import SPEC
+
+
+def test_a_grid_larger_than_max_points_is_refused_before_allocating_naming_points_and_range():
+    assert MAX_POINTS == 100_000
+    for n in (10**12, MAX_POINTS + 1, -1, 2**70):
+        with pytest.raises(StepdampError, match=rf"^points: {n} must be in 0\.\.=100000$"):
+            stepdamp.linear_grid(1, 40, n)
+    assert len(stepdamp.linear_grid(1, 40, MAX_POINTS)) == MAX_POINTS
+    with pytest.raises(TypeError):
+        stepdamp.linear_grid(1, 40, 4.5)
+
+
+def test_a_sweep_of_more_than_max_points_speeds_is_refused_before_any_run():
+    m = stepdamp.Profile.preset("patent-motor")
+    with pytest.raises(StepdampError, match=r"^speeds: 100001 must be in 0\.\.=100000$"):
+        stepdamp.sweep(m, "open-loop", "patent", [5.0] * (MAX_POINTS + 1))
+
+
+def test_a_sweep_listing_a_mode_or_compensation_twice_is_refused_not_multiplied():
+    m = stepdamp.Profile.preset("patent-motor")
+    with pytest.raises(StepdampError, match=r"^modes: open-loop is listed twice$"):
+        stepdamp.sweep(m, ["open-loop"] * 10**6, "patent", [5.0])
+    with pytest.raises(StepdampError, match=r"^compensations: patent is listed twice$"):
+        stepdamp.sweep(m, "open-loop", "off,patent,patent", [5.0])
+
+
+def test_a_simulate_whose_log_would_not_fit_in_memory_is_refused_naming_the_duration_and_range():
+    m = stepdamp.Profile.preset("patent-motor")
+    with pytest.raises(StepdampError, match=r"^duration: 1000000 s must be in \(0, 1250\] s: at 20000 Hz .* 25000000"):
+        stepdamp.simulate(m, duration_s=1e6)
+
+
+def test_a_study_from_json_asking_for_more_variants_than_a_spec_may_is_refused():
+    good = json.loads(stepdamp.load_spec(SPEC.format(n=3)))
+    good["spec"]["variants"] = 10**15
+    with pytest.raises(StepdampError, match=r"variants = 1000000000000000: must be in 1\.\.=10000000"):
+        stepdamp.studies.run_chunk(json.dumps(good), 0, 0)
+
+
+# The child runs a long call, prints "start" (then the parent waits ~1 s and sends SIGINT)
+# and prints the time it caught KeyboardInterrupt.
+CHILD = textwrap.dedent(
+    """
+    import sys, time
+    import stepdamp
+    m = stepdamp.Profile.preset("patent-motor")
+    SPEC = sys.argv[2]
+    calls = {
+        "simulate": lambda: stepdamp.simulate(m, "open-loop", "patent", 10.0, 1000.0),
+        "sweep": lambda: stepdamp.sweep(m, "open-loop", "patent", [5.0, 10.0], duration_s=1000.0),
+        "study": lambda: stepdamp.study(SPEC, dask=False),
+    }
+    print("start", flush=True)
+    try:
+        calls[sys.argv[1]]()
+    except KeyboardInterrupt:
+        print("KeyboardInterrupt", time.monotonic(), flush=True)
+        sys.exit(0)
+    print("finished", flush=True)
+    """
+)
+
+LONG_STUDY = SPEC.format(n=400).replace("duration_s = 0.4", "duration_s = 100.0")
+
+
+@pytest.mark.parametrize("call", ["simulate", "sweep", "study"])
+def test_ctrl_c_during_a_long_call_raises_keyboard_interrupt_within_half_a_second(call):
+    child = subprocess.Popen(
+        [sys.executable, "-c", CHILD, call, LONG_STUDY],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    try:
+        assert child.stdout.readline().strip() == "start"
+        time.sleep(1.0)
+        sent = time.monotonic()
+        child.send_signal(signal.SIGINT)
+        out, err = child.communicate(timeout=30)
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.communicate()
+    assert "PanicException" not in err, err
+    lines = out.split()
+    assert lines[:1] == ["KeyboardInterrupt"], (out, err)
+    assert child.returncode == 0, err
+    assert float(lines[1]) - sent <= 0.5, f"KeyboardInterrupt {float(lines[1]) - sent:.3f} s after SIGINT"
+
+
+def test_non_integral_orders_are_refused_naming_the_value_not_truncated():
+    base = stepdamp.Profile.preset("patent-motor")
+    with pytest.raises(StepdampError, match=r"orders: 4\.5 is not an integer"):
+        stepdamp.identify([], base, orders=[4.5])
+    with pytest.raises(StepdampError, match=r"orders: 'x' is not an integer"):
+        stepdamp.identify([], base, orders=["x"])
+    assert stepdamp._orders([4, 2.0, 1]) == [4, 2, 1]
+
+
+def test_study_without_the_study_extra_names_the_extra_and_the_pip_command(monkeypatch):
+    # What `pip install stepdamp` without [study] looks like: dask cannot be imported.
+    monkeypatch.setitem(sys.modules, "dask", None)
+    monkeypatch.setitem(sys.modules, "dask.distributed", None)
+    with pytest.raises(ModuleNotFoundError, match=r"\[study\] extra \(dask\.distributed is missing\): "
+                       r"pip install 'stepdamp\[study\]'"):
+        stepdamp.study(SPEC.format(n=2))
+
+
+def test_the_documented_study_snippets_guard_the_cluster_start_with_if_main():
+    root = os.path.join(os.path.dirname(__file__), "..", "..")
+    for doc in ("README.md", os.path.join("docs", "python.md")):
+        path = os.path.join(root, doc)
+        if not os.path.exists(path):
+            pytest.skip("run from a source tree")
+        text = open(path, encoding="utf-8").read()
+        blocks = text.split("```python")[1:]
+        for b in (b.split("```")[0] for b in blocks):
+            starts = [line for line in b.splitlines() if "stepdamp.study(" in line and "dask=False" not in line]
+            if starts:
+                assert 'if __name__ == "__main__":' in b, f"{doc}: unguarded study snippet:\n{b}"
