@@ -116,9 +116,12 @@ def test_ripple_equals_the_clis_json(cli, tmp_path):
     r = stepdamp.ripple(p, 1.9, 0.0)
     rc, out, _ = cli("motor", "ripple", "--motor", str(path), "--id", "1.9", "--iq", "0", "--format", "json")
     assert rc == 0 and json.loads(out) == r
-    # 3·h3·Km·I at order 4 in the current part, the preset's 20 mN·m in the detent part.
+    # 3·h3·Km·I at order 4 in the current part (docs/design.md: to first order; g and h3
+    # together add up to g·3h3·Km·I), the preset's 20 mN·m in the detent part.
     k4 = [h for h in r["current"] if h["order"] == 4][0]
-    assert abs(k4["amplitude_nm"] - 3 * 0.01 * 0.3 * 1.9) < 1e-9
+    assert abs(k4["amplitude_nm"] - 3 * 0.01 * 0.3 * 1.9) < 0.03 * 3 * 0.01 * 0.3 * 1.9
+    half = stepdamp.ripple(p, 0.95, 0.0)
+    assert abs([h for h in half["current"] if h["order"] == 4][0]["amplitude_nm"] - k4["amplitude_nm"] / 2) < 1e-12
     assert [h for h in r["detent"] if h["order"] == 4][0]["amplitude_nm"] == 0.02
     with pytest.raises(stepdamp.StepdampError, match="--id 1e9 A"):
         stepdamp.ripple(p, 1e9, 0.0)
