@@ -120,7 +120,7 @@ fn open_loop_peaks(motor: &Profile, controller: &Profile, k: u16) -> (f64, f64) 
     use crate::{Compensation, RunSpec, SimOptions, SweepSpec, sweep};
     let w = motor.resonance_speed_rad_s(k);
     let spec = SweepSpec {
-        speeds_rad_s: crate::linear_grid(0.9 * w, 1.1 * w, 9),
+        speeds_rad_s: crate::linear_grid(0.9 * w, 1.1 * w, 9).unwrap(),
         modes: vec![stepdamp_core::Mode::OpenLoop],
         compensations: vec![Compensation::Off, Compensation::Patent],
         run: RunSpec::at(1.0),
