@@ -56,10 +56,13 @@ def test_a_study_from_json_asking_for_more_variants_than_a_spec_may_is_refused()
 
 
 # The child runs a long call, prints "start" (then the parent waits ~1 s and sends SIGINT)
-# and prints the time it caught KeyboardInterrupt.
+# and prints the time it caught KeyboardInterrupt. It restores Python's own SIGINT handler
+# first: a process started in the background of a non-interactive shell (as CI may run the
+# suite) inherits SIGINT ignored, and Python then installs no KeyboardInterrupt handler.
 CHILD = textwrap.dedent(
     """
-    import sys, time
+    import signal, sys, time
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     import stepdamp
     m = stepdamp.Profile.preset("patent-motor")
     SPEC = sys.argv[2]
