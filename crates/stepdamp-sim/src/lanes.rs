@@ -87,6 +87,9 @@ struct Kernel {
     flux: Option<FluxKernel>,
 }
 
+/// `(S_a, S_b)` per lane.
+type ShapeSums<const N: usize> = ([f64; N], [f64; N]);
+
 /// The flux shape sums `S_a`, `S_b` of [`stepdamp_profile::flux`] prepared for the lanes: the
 /// harmonics dense by odd order from 3 (`(ca, sa, cb, sb)`, zeros where absent) and `1 + g`.
 #[derive(Clone, Debug, PartialEq)]
@@ -244,14 +247,21 @@ impl<const N: usize> Integrator<N> {
         sum
     }
 
-    /// Every torque on the rotor but Coulomb friction, per lane.
+    /// Every torque on the rotor but Coulomb friction, per lane; `sums` are the flux shape's
+    /// `(S_a, S_b)` when the motor has one (computed once per stage by the caller).
     #[inline(always)]
-    fn non_friction_torque(&mut self, x: &StateLanes<N>, s: &[f64; N], c: &[f64; N], load: &[f64; N]) -> [f64; N] {
+    fn non_friction_torque(
+        &mut self,
+        x: &StateLanes<N>,
+        s: &[f64; N],
+        c: &[f64; N],
+        load: &[f64; N],
+        sums: Option<&ShapeSums<N>>,
+    ) -> [f64; N] {
         let det = self.detent_series(s, c);
         let k = &self.k;
         let mut out = [0.0; N];
-        if let Some(f) = &k.flux {
-            let (sa, sb) = f.shape_sums(s, c);
+        if let (Some(f), Some((sa, sb))) = (&k.flux, sums) {
             for l in 0..N {
                 let tau_m = -k.km * (x.i_a[l] * sa[l] + f.b_gain * x.i_b[l] * sb[l]);
                 out[l] = tau_m - det[l] - k.d * x.omega[l] + load[l];
@@ -268,8 +278,7 @@ impl<const N: usize> Integrator<N> {
     /// The windings' back-EMF terms `(Km·ω·S_a, (1+g)·Km·ω·S_b)` per lane (the winding
     /// equations are `L·di/dt = v − R·i + these`), for a flux shape.
     #[inline(always)]
-    fn flux_emf(f: &FluxKernel, km: f64, x: &StateLanes<N>, s: &[f64; N], c: &[f64; N]) -> ([f64; N], [f64; N]) {
-        let (sa, sb) = f.shape_sums(s, c);
+    fn flux_emf(f: &FluxKernel, km: f64, x: &StateLanes<N>, (sa, sb): &ShapeSums<N>) -> ([f64; N], [f64; N]) {
         let (mut ea, mut eb) = ([0.0; N], [0.0; N]);
         for l in 0..N {
             ea[l] = km * x.omega[l] * sa[l];
@@ -283,7 +292,8 @@ impl<const N: usize> Integrator<N> {
     #[cfg(test)]
     pub(crate) fn static_torque(&mut self, x: &StateLanes<N>) -> [f64; N] {
         let (s, c) = sin_cos_lanes(&x.theta.map(|t| self.k.nr * t));
-        self.non_friction_torque(x, &s, &c, &[0.0; N])
+        let sums = self.k.flux.as_ref().map(|f| f.shape_sums(&s, &c));
+        self.non_friction_torque(x, &s, &c, &[0.0; N], sums.as_ref())
     }
 
     /// Time derivative of the lanes for winding voltages `va`, `vb` with `s`, `c` the
@@ -300,14 +310,15 @@ impl<const N: usize> Integrator<N> {
         load: &[f64; N],
         band: f64,
     ) -> StateLanes<N> {
-        let others = self.non_friction_torque(x, s, c, load);
+        let sums = self.k.flux.as_ref().map(|f| f.shape_sums(s, c));
+        let others = self.non_friction_torque(x, s, c, load, sums.as_ref());
         let k = &self.k;
         let mut d = StateLanes { i_a: [0.0; N], i_b: [0.0; N], theta: x.omega, omega: [0.0; N] };
         // The windings' back-EMF terms: `v − R·i + e` with `e = (Km·ω·sin θe, −Km·ω·cos θe)`
         // for the pure sine (`a + (−b)` is `a − b` exactly: the same bits as before).
-        let (ea, eb) = match &k.flux {
-            Some(f) => Self::flux_emf(f, k.km, x, s, c),
-            None => {
+        let (ea, eb) = match (&k.flux, &sums) {
+            (Some(f), Some(sums)) => Self::flux_emf(f, k.km, x, sums),
+            _ => {
                 let (mut ea, mut eb) = ([0.0; N], [0.0; N]);
                 for l in 0..N {
                     ea[l] = k.km * x.omega[l] * s[l];
@@ -357,7 +368,8 @@ impl<const N: usize> Integrator<N> {
             Some(&sc) => sc,
             None => sin_cos_lanes(&x.theta.map(|t| self.k.nr * t)),
         };
-        let others = self.non_friction_torque(x, &s, &c, load);
+        let sums = self.k.flux.as_ref().map(|f| f.shape_sums(&s, &c));
+        let others = self.non_friction_torque(x, &s, &c, load, sums.as_ref());
         for l in 0..N {
             if inside[l] && others[l].abs() <= self.k.fs {
                 x.omega[l] = 0.0;
