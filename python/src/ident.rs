@@ -4,18 +4,41 @@
 
 use crate::err;
 use crate::profile::PyProfile;
+use numpy::PyReadonlyArray1;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use std::path::PathBuf;
 use stepdamp_identify::fit::Estimate;
 use stepdamp_identify::from_logs::{IdentifyOptions, LogSource, Route, identify as identify_logs};
+use stepdamp_identify::log::LogColumns;
 
-/// A log as the Python wrapper passes it: `("path", path)` or `("csv", text, source)`.
-fn source(kind: &str, a: &str, b: Option<&str>) -> Result<LogSource, String> {
-    match kind {
-        "path" => Ok(LogSource::Path(a.into())),
-        "csv" => Ok(LogSource::Text { text: a.to_string(), name: b.unwrap_or("<DataFrame>").to_string() }),
-        _ => Err(format!("log kind '{kind}': expected path or csv")),
-    }
+/// A log as the Python wrapper passes it: a path, or a frame's columns as
+/// `(name, [(column, float64 array)], [unused column names])`.
+#[derive(FromPyObject)]
+pub enum LogArg<'py> {
+    /// A file (str or os.PathLike).
+    #[pyo3(transparent)]
+    Path(PathBuf),
+    /// Columns in memory: the log's name in messages, the read columns (contiguous
+    /// float64, borrowed, not copied), and the names of the columns not read.
+    Frame(String, Vec<(String, PyReadonlyArray1<'py, f64>)>, Vec<String>),
+}
+
+/// The library's source for one argument, borrowing the arrays' memory.
+fn source<'a>(arg: &'a LogArg<'_>) -> PyResult<LogSource<'a>> {
+    Ok(match arg {
+        LogArg::Path(p) => LogSource::Path(p.clone()),
+        LogArg::Frame(name, cols, unused) => {
+            let values = cols
+                .iter()
+                .map(|(c, a)| {
+                    let v = a.as_slice().map_err(|_| err(format!("{name}: column '{c}' is not a contiguous array")))?;
+                    Ok((c.clone(), v))
+                })
+                .collect::<PyResult<Vec<_>>>()?;
+            LogSource::Columns { columns: LogColumns { values, unused: unused.clone() }, name: name.clone() }
+        }
+    })
 }
 
 fn estimate<'py>(py: Python<'py>, e: &Estimate) -> PyResult<Bound<'py, PyDict>> {
@@ -26,8 +49,9 @@ fn estimate<'py>(py: Python<'py>, e: &Estimate) -> PyResult<Bound<'py, PyDict>> 
 }
 
 /// Identifies the detent harmonics, `Fs`, `D` and `J` from run logs (the CLI's
-/// `identify`). `logs` is a list of `("path", path)` or `("csv", text, source)`
-/// (the Python wrapper turns DataFrames into CSV text, so the CLI's reader checks them).
+/// `identify`). `logs` is a list of paths or `(name, columns, unused)` ([`LogArg`]): the
+/// Python wrapper passes a DataFrame's columns as arrays, which the library's reader checks
+/// as it checks a file's rows, copying only the columns it uses.
 /// The route is the CLI's: logs without `theta_fb_rad` take the sensorless route (which
 /// also trims `R`), a set of both routes is refused; `sensorless=True` or `False` forces
 /// one. Returns `(profile, report)`: `base` with the identified values, and the fit report
@@ -36,17 +60,16 @@ fn estimate<'py>(py: Python<'py>, e: &Estimate) -> PyResult<Bound<'py, PyDict>> 
 #[pyo3(signature = (logs, base, orders = vec![1, 2, 4], name = None, sensorless = None))]
 pub fn identify<'py>(
     py: Python<'py>,
-    logs: Vec<(String, String, Option<String>)>,
+    logs: Vec<LogArg<'py>>,
     base: &PyProfile,
     orders: Vec<u16>,
     name: Option<String>,
     sensorless: Option<bool>,
 ) -> PyResult<(PyProfile, Bound<'py, PyDict>)> {
     let base = base.inner.clone();
+    let sources = logs.iter().map(source).collect::<PyResult<Vec<_>>>()?;
     let report = py
         .allow_threads(|| -> Result<_, String> {
-            let sources =
-                logs.iter().map(|(k, a, b)| source(k, a, b.as_deref())).collect::<Result<Vec<_>, String>>()?;
             let o = IdentifyOptions {
                 route: sensorless.map(|s| if s { Route::Sensorless } else { Route::Encoder }),
                 name,

@@ -36,6 +36,9 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("PRESETS", stepdamp_sim::PRESETS.to_vec())?;
     // The most points of a speed grid and speeds of a sweep, from its one home.
     m.add("MAX_POINTS", stepdamp_sim::MAX_POINTS)?;
+    // The run-log columns the readers use (docs/files.md#run-log-csv): the wrapper hands
+    // these to Rust as arrays and any other column by name only.
+    m.add("LOG_COLUMNS", stepdamp_identify::log::KNOWN_COLUMNS.to_vec())?;
     // The run shape's defaults, from their one home (stepdamp_sim::RunSpec).
     m.add("DURATION_S", stepdamp_sim::RunSpec::DURATION_S)?;
     m.add("DWELL_S", stepdamp_sim::RunSpec::DWELL_S)?;

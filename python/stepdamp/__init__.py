@@ -12,7 +12,6 @@ raised as :class:`StepdampError` (a ``ValueError``) with the CLI's one-line mess
 
 from __future__ import annotations
 
-import io
 import json
 import math
 import operator
@@ -179,23 +178,44 @@ def sweep(
 
 
 def _log_arg(log: Any, i: int):
+    """A path as it is, or a frame as ``(name, [(column, float64 array)], [other names])``:
+    the run-log columns go to Rust as arrays (views where they already are contiguous
+    float64, no CSV text), any other column by name only (reported as ignored)."""
     if isinstance(log, (str, os.PathLike)):
-        return ("path", os.fspath(log), None)
+        return log
     if _pd is not None and isinstance(log, _pd.DataFrame):
-        frame = log
+        name, items = f"<DataFrame {i}>", [(c, log.iloc[:, j]) for j, c in enumerate(log.columns)]
     elif isinstance(log, dict):
-        if _pd is not None:
-            frame = _pd.DataFrame(log)
-        else:
-            names = list(log)
-            data = np.column_stack([np.asarray(log[n], dtype=float) for n in names])
-            buf = io.StringIO()
-            np.savetxt(buf, data, delimiter=",", header=",".join(names), comments="", fmt="%.17g")
-            return ("csv", buf.getvalue(), f"<log {i}>")
+        name, items = f"<log {i}>", list(log.items())
     else:
         raise TypeError(f"log {i}: expected a path, a pandas DataFrame or a dict of arrays, got {type(log).__name__}")
-    # Through CSV text, so the CLI's reader checks the columns exactly as for a file.
-    return ("csv", frame.to_csv(index=False, float_format="%.17g"), f"<DataFrame {i}>")
+    known = set(_native.LOG_COLUMNS)
+    values, unused = [], []
+    for column, data in items:
+        if isinstance(column, str) and column in known:
+            values.append((column, _float_column(name, column, data)))
+        else:
+            unused.append(str(column))
+    return (name, values, unused)
+
+
+def _float_column(name: str, column: str, data: Any) -> np.ndarray:
+    """``data`` as a contiguous 1-D float64 array (a view when it already is one); a value
+    that is not a number is refused naming its line as in the CSV the frame would write."""
+    try:
+        array = np.asarray(data, dtype=np.float64)
+    except (TypeError, ValueError):
+        array = None
+    if array is not None:
+        if array.ndim != 1:
+            raise StepdampError(f"{name}: column '{column}' has shape {array.shape}: expected one value per row")
+        return np.ascontiguousarray(array)
+    for j, v in enumerate(np.asarray(data, dtype=object).reshape(-1)):
+        try:
+            float(v)
+        except (TypeError, ValueError):
+            raise StepdampError(f"{name}: line {j + 2}, column '{column}': {str(v)[:40]!r} is not a number") from None
+    raise StepdampError(f"{name}: column '{column}' cannot be read as float64 numbers")
 
 
 def identify(

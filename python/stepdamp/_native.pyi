@@ -109,7 +109,7 @@ def sweep(
     ...
 def resonance(profile: Profile) -> Dict[str, Any]: ...
 def identify(
-    logs: Sequence[Tuple[str, str, Optional[str]]],
+    logs: Sequence[Union[str, PathLike[str], Tuple[str, List[Tuple[str, npt.NDArray[np.float64]]], List[str]]]],
     base: Profile,
     orders: Sequence[int] = ...,
     name: Optional[str] = None,

@@ -10,6 +10,7 @@ import sys
 import textwrap
 import time
 
+import numpy as np
 import pytest
 
 import stepdamp
@@ -137,3 +138,55 @@ def test_the_documented_study_snippets_guard_the_cluster_start_with_if_main():
             starts = [line for line in b.splitlines() if "stepdamp.study(" in line and "dask=False" not in line]
             if starts:
                 assert 'if __name__ == "__main__":' in b, f"{doc}: unguarded study snippet:\n{b}"
+
+
+def _servo_frames():
+    p = stepdamp.Profile.preset("patent-motor")
+    return p, [stepdamp.simulate(p, "servo", "off", w, 1.2, current_noise_a=0.005, seed=i)
+               for i, w in enumerate([6.0, 11.0, -6.0, -11.0])]
+
+
+def test_dataframes_reach_rust_as_views_of_their_arrays_not_as_csv_text(monkeypatch):
+    import pandas as pd
+
+    from stepdamp import _log_arg
+
+    p, logs = _servo_frames()
+    name, values, unused = _log_arg(logs[0], 0)
+    assert name == "<DataFrame 0>" and set(unused) <= set(logs[0].columns) - set(stepdamp._native.LOG_COLUMNS)
+    for column, array in values:
+        assert np.shares_memory(array, logs[0][column].to_numpy()), column
+
+    def no_csv(*a, **k):
+        raise AssertionError("identify wrote a DataFrame as CSV text")
+
+    monkeypatch.setattr(pd.DataFrame, "to_csv", no_csv)
+    base = p.copy()
+    base.detent = []
+    found, report = stepdamp.identify(logs, base, orders=[1, 2, 4])
+    a4 = [h for h in found.detent if h["order"] == 4][0]["amplitude_nm"]
+    assert abs(a4 - 0.02) < 0.002, report
+
+
+def test_a_bad_value_in_a_dataframe_is_refused_naming_frame_line_and_column():
+    p, logs = _servo_frames()
+    bad = logs[1].copy()
+    bad.loc[5, "i_q_a"] = float("nan")
+    with pytest.raises(StepdampError, match=r"^<DataFrame 1>: line 7, column 'i_q_a': \"NaN\" is not a finite number$"):
+        stepdamp.identify([logs[0], bad], p)
+    text = logs[0].astype({"i_q_a": object})
+    text.loc[3, "i_q_a"] = "1,5"
+    with pytest.raises(StepdampError, match=r"^<DataFrame 0>: line 5, column 'i_q_a': '1,5' is not a number$"):
+        stepdamp.identify([text], p)
+    twice = pd_concat_columns(logs[0])
+    with pytest.raises(StepdampError, match=r"column 't_s' appears twice"):
+        stepdamp.identify([twice], p)
+    with pytest.raises(StepdampError, match=r"^<log 0>: column 'i_q_a' has 3 rows, column 't_s' has 2"):
+        stepdamp.identify([{"t_s": [0.0, 1.0], "theta_fb_rad": [0.0, 1.0], "i_q_a": [0.0, 1.0, 2.0]}], p)
+
+
+def pd_concat_columns(frame):
+    """``frame`` with its ``t_s`` column twice (a DataFrame allows that, a log does not)."""
+    import pandas as pd
+
+    return pd.concat([frame, frame[["t_s"]]], axis=1)

@@ -248,6 +248,30 @@ pub enum LogError {
         /// The previous row's time.
         prev: f64,
     },
+    /// Columns given in memory (a DataFrame's) are not all the same length.
+    #[error(
+        "{path}: column '{column}' has {rows} rows, column '{first}' has {expected}: the columns of a log must be the same length"
+    )]
+    RaggedColumns {
+        /// The log's name.
+        path: String,
+        /// The column of another length.
+        column: String,
+        /// Its rows.
+        rows: usize,
+        /// The first column.
+        first: String,
+        /// The first column's rows.
+        expected: usize,
+    },
+    /// A column the reader uses was named without its values (in memory only).
+    #[error("{path}: column '{column}' is given without its values (pass its array)")]
+    ColumnWithoutValues {
+        /// The log's name.
+        path: String,
+        /// The column.
+        column: String,
+    },
     /// The log covers too few electrical periods.
     #[error(
         "{path}: too short: the rotor moved {periods:.2} electrical periods over {rows} rows (lines 2–{last_line}); at least {needed} are needed ({})",
@@ -340,7 +364,7 @@ pub fn parse_log<R: Read>(reader: R, source: &str, opts: &LogOptions) -> Result<
 
 /// The rest of [`parse_log`] once the header is read: the same reader goes on to the rows.
 pub(crate) fn log_from_columns<R: Read>(
-    cols: columns::ColumnReader<R>,
+    cols: columns::ColumnReader<'_, R>,
     source: &str,
     opts: &LogOptions,
 ) -> Result<RunLog, LogError> {
@@ -467,6 +491,8 @@ impl RunLog {
 }
 
 pub(crate) mod columns;
+
+pub use columns::LogColumns;
 
 #[cfg(test)]
 mod tests;

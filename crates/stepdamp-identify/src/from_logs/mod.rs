@@ -259,7 +259,11 @@ impl fmt::Display for IdentifyReport {
 /// described by `base` from the logs `inputs`: each read once ([`read_logs`]), the route
 /// from their headers (or [`IdentifyOptions::route`]), fitted, validated, and applied to
 /// `base` (its `Km`, `Nr`, encoder and servo settings kept).
-pub fn identify(inputs: &[LogSource], base: &Profile, o: &IdentifyOptions) -> Result<IdentifyReport, IdentifyError> {
+pub fn identify(
+    inputs: &[LogSource<'_>],
+    base: &Profile,
+    o: &IdentifyOptions,
+) -> Result<IdentifyReport, IdentifyError> {
     o.check()?;
     let t0 = Instant::now();
     let logs = read_logs(inputs, base.motor.pole_pairs, o.route)?;

@@ -5,7 +5,7 @@
 
 use super::IdentifyError;
 use crate::log::columns::ColumnReader;
-use crate::log::{EXPECTED_HEADER, KNOWN_COLUMNS, LogError, LogOptions, RunLog, log_from_columns};
+use crate::log::{EXPECTED_HEADER, KNOWN_COLUMNS, LogColumns, LogError, LogOptions, RunLog, log_from_columns};
 use crate::sensorless::log::{
     EXPECTED_HEADER as SENSORLESS_EXPECTED_HEADER, SensorlessLog, sensorless_log_from_columns,
 };
@@ -18,25 +18,25 @@ pub const STDIN_NAME: &str = "<stdin>";
 
 /// Where a run log comes from. Each is opened once and read once, front to back, so a
 /// FIFO, a pipe (`<(…)`) or standard input work as a file does.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum LogSource {
+#[derive(Clone, Debug, PartialEq)]
+pub enum LogSource<'a> {
     /// A file, FIFO or device, by path.
     Path(PathBuf),
     /// Standard input (`-` on the command line): at most once in a set.
     Stdin,
-    /// CSV text already in memory (e.g. a DataFrame written as CSV), with the name
-    /// messages give it.
-    Text {
-        /// The CSV text.
-        text: String,
+    /// Columns already in memory (a DataFrame's arrays, borrowed): read without CSV text,
+    /// only the wanted columns copied.
+    Columns {
+        /// The columns.
+        columns: LogColumns<'a>,
         /// Its name in messages.
         name: String,
     },
 }
 
-impl LogSource {
+impl LogSource<'_> {
     /// A command-line argument: `-` is standard input, anything else a path.
-    pub fn from_arg(arg: impl Into<PathBuf>) -> LogSource {
+    pub fn from_arg(arg: impl Into<PathBuf>) -> LogSource<'static> {
         let p = arg.into();
         if p.as_os_str() == "-" { LogSource::Stdin } else { LogSource::Path(p) }
     }
@@ -46,7 +46,7 @@ impl LogSource {
         match self {
             LogSource::Path(p) => p.display().to_string(),
             LogSource::Stdin => STDIN_NAME.to_string(),
-            LogSource::Text { name, .. } => name.clone(),
+            LogSource::Columns { name, .. } => name.clone(),
         }
     }
 }
@@ -82,7 +82,7 @@ impl Route {
     /// The route a header calls for: encoder with `theta_fb_rad`, sensorless with a
     /// voltage column instead (a missing current or voltage is then the reader's error);
     /// neither is an error naming what is missing.
-    fn of_header<R: Read>(cols: &ColumnReader<R>) -> Result<Route, LogError> {
+    fn of_header<R: Read>(cols: &ColumnReader<'_, R>) -> Result<Route, LogError> {
         if cols.has("theta_fb_rad") {
             Ok(Route::Encoder)
         } else if cols.has("v_a_v") || cols.has("v_b_v") {
@@ -152,7 +152,7 @@ type Outcome = (Option<Route>, Result<OneLog, LogError>);
 /// empty set, a file given twice (compared by device and inode, so `a.csv`, `./a.csv`, a
 /// link to it and `-` redirected from it are one file), standard input twice, and a set
 /// whose headers call for two routes (that refusal wins over any error in the rows).
-pub fn read_logs(inputs: &[LogSource], pole_pairs: u16, forced: Option<Route>) -> Result<Logs, IdentifyError> {
+pub fn read_logs(inputs: &[LogSource<'_>], pole_pairs: u16, forced: Option<Route>) -> Result<Logs, IdentifyError> {
     if inputs.is_empty() {
         return Err(IdentifyError::NoLogs);
     }
@@ -184,7 +184,7 @@ pub fn read_logs(inputs: &[LogSource], pole_pairs: u16, forced: Option<Route>) -
 
 /// Opens `source` once and reads it: the header, the route, then the rows of that route
 /// from the same reader.
-fn read_source(source: &LogSource, opts: &LogOptions, forced: Option<Route>) -> Outcome {
+fn read_source(source: &LogSource<'_>, opts: &LogOptions, forced: Option<Route>) -> Outcome {
     let name = source.name();
     match source {
         LogSource::Path(p) => match std::fs::File::open(p) {
@@ -192,16 +192,23 @@ fn read_source(source: &LogSource, opts: &LogOptions, forced: Option<Route>) -> 
             Err(e) => (None, Err(LogError::Io { path: name, source: e })),
         },
         LogSource::Stdin => read_reader(std::io::stdin().lock(), &name, opts, forced),
-        LogSource::Text { text, .. } => read_reader(text.as_bytes(), &name, opts, forced),
+        LogSource::Columns { columns, .. } => match ColumnReader::from_arrays(columns, &name, &KNOWN_COLUMNS) {
+            Ok(cols) => read_opened(cols, &name, opts, forced),
+            Err(e) => (None, Err(e)),
+        },
     }
 }
 
 fn read_reader<R: Read>(reader: R, name: &str, opts: &LogOptions, forced: Option<Route>) -> Outcome {
     let expected = if forced == Some(Route::Sensorless) { SENSORLESS_EXPECTED_HEADER } else { EXPECTED_HEADER };
-    let cols = match ColumnReader::open(reader, name, &KNOWN_COLUMNS, expected) {
-        Ok(c) => c,
-        Err(e) => return (None, Err(e)),
-    };
+    match ColumnReader::open(reader, name, &KNOWN_COLUMNS, expected) {
+        Ok(cols) => read_opened(cols, name, opts, forced),
+        Err(e) => (None, Err(e)),
+    }
+}
+
+/// The route, then the rows of that route, of a log whose header is read.
+fn read_opened<R: Read>(cols: ColumnReader<'_, R>, name: &str, opts: &LogOptions, forced: Option<Route>) -> Outcome {
     let route = match forced.map_or_else(|| Route::of_header(&cols), Ok) {
         Ok(r) => r,
         Err(e) => return (None, Err(e)),
@@ -214,7 +221,7 @@ fn read_reader<R: Read>(reader: R, name: &str, opts: &LogOptions, forced: Option
 }
 
 /// `work` on every input, on at most one thread per core, results in the inputs' order.
-fn in_parallel<T: Send>(inputs: &[LogSource], work: impl Fn(&LogSource) -> T + Sync) -> Vec<T> {
+fn in_parallel<T: Send>(inputs: &[LogSource<'_>], work: impl Fn(&LogSource<'_>) -> T + Sync) -> Vec<T> {
     let threads = std::thread::available_parallelism().map_or(1, usize::from).min(inputs.len());
     let next = AtomicUsize::new(0);
     let mut done: Vec<(usize, T)> = std::thread::scope(|s| {
@@ -240,7 +247,7 @@ fn in_parallel<T: Send>(inputs: &[LogSource], work: impl Fn(&LogSource) -> T + S
 /// Refuses standard input twice and a file given twice (by device and inode on Unix, by
 /// canonical path elsewhere), before anything is opened (a FIFO given twice would wait for
 /// a second writer forever). A path that cannot be inspected is left to the reader's error.
-fn refuse_duplicates(inputs: &[LogSource]) -> Result<(), IdentifyError> {
+fn refuse_duplicates(inputs: &[LogSource<'_>]) -> Result<(), IdentifyError> {
     let mut seen: Vec<(FileId, String)> = Vec::new();
     let mut stdin_seen = false;
     for s in inputs {
@@ -251,7 +258,7 @@ fn refuse_duplicates(inputs: &[LogSource]) -> Result<(), IdentifyError> {
                 stdin_seen = true;
                 FileId::of_stdin()
             }
-            LogSource::Text { .. } => None,
+            LogSource::Columns { .. } => None,
         };
         let Some(id) = id else { continue };
         if let Some((_, first)) = seen.iter().find(|(k, _)| *k == id) {

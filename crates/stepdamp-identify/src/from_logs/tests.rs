@@ -2,6 +2,7 @@
 //! simulator needed: these run without the feature `simulate`).
 
 use super::{IdentifyError, IdentifyOptions, LogSource, Logs, Route, identify, read_logs};
+use crate::log::{LogColumns, LogError};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use stepdamp_profile::Profile;
@@ -32,7 +33,7 @@ fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     p
 }
 
-fn path(p: &Path) -> LogSource {
+fn path(p: &Path) -> LogSource<'static> {
     LogSource::Path(p.to_path_buf())
 }
 
@@ -51,12 +52,66 @@ fn the_route_comes_from_the_headers_and_the_rows_from_the_same_reading() {
     assert!(e.contains("enc.csv") && e.contains("'theta_cmd_rad'"), "{e}");
 }
 
+/// The columns of a CSV text, as a DataFrame would hold them: (name, values), all parsed.
+fn columns_of(csv: &str) -> Vec<(String, Vec<f64>)> {
+    let mut lines = csv.lines();
+    let mut cols: Vec<(String, Vec<f64>)> =
+        lines.next().unwrap().split(',').map(|n| (n.to_string(), Vec::new())).collect();
+    for l in lines {
+        for (c, v) in cols.iter_mut().zip(l.split(',')) {
+            c.1.push(v.parse().unwrap());
+        }
+    }
+    cols
+}
+
+fn in_memory<'a>(cols: &'a [(String, Vec<f64>)], unused: &[&str]) -> LogSource<'a> {
+    LogSource::Columns {
+        columns: LogColumns {
+            values: cols.iter().map(|(n, v)| (n.clone(), v.as_slice())).collect(),
+            unused: unused.iter().map(ToString::to_string).collect(),
+        },
+        name: "<DataFrame 0>".to_string(),
+    }
+}
+
 #[test]
-fn in_memory_text_reads_as_the_file_does() {
+fn columns_in_memory_read_as_the_file_does() {
     let dir = tempfile::tempdir().unwrap();
     let enc = write(dir.path(), "enc.csv", &encoder_csv());
-    let text = LogSource::Text { text: encoder_csv(), name: enc.display().to_string() };
-    assert_eq!(read_logs(&[text], 50, None).unwrap(), read_logs(&[path(&enc)], 50, None).unwrap());
+    let mut cols = columns_of(&encoder_csv());
+    cols.pop(); // `extra`, an unknown column, is passed by name only
+    let Logs::Encoder(mut mem) = read_logs(&[in_memory(&cols, &["extra"])], 50, None).unwrap() else {
+        panic!("not encoder")
+    };
+    let Logs::Encoder(file) = read_logs(&[path(&enc)], 50, None).unwrap() else { panic!("not encoder") };
+    mem[0].source = file[0].source.clone();
+    assert_eq!(mem, file);
+    let sl = columns_of(&sensorless_csv());
+    assert_eq!(read_logs(&[in_memory(&sl, &[])], 50, None).unwrap().route(), Route::Sensorless);
+}
+
+#[test]
+fn columns_in_memory_are_checked_as_a_file_is_with_csv_line_numbers() {
+    let mut cols = columns_of(&encoder_csv());
+    cols[2].1[5] = f64::NAN;
+    let e = read_logs(&[in_memory(&cols, &[])], 50, None).unwrap_err().to_string();
+    assert!(e.contains("<DataFrame 0>: line 7, column 'i_q_a'") && e.contains("NaN"), "{e}");
+    let mut cols = columns_of(&encoder_csv());
+    cols[0].1[9] = cols[0].1[8];
+    let e = read_logs(&[in_memory(&cols, &[])], 50, None).unwrap_err().to_string();
+    assert!(e.contains("line 11, column 't_s'"), "{e}");
+    let mut cols = columns_of(&encoder_csv());
+    cols[1].1.pop();
+    let e = read_logs(&[in_memory(&cols, &[])], 50, None).unwrap_err();
+    assert!(matches!(e, IdentifyError::Log(LogError::RaggedColumns { rows: 999, expected: 1000, .. })), "{e}");
+    let cols = columns_of(&encoder_csv());
+    let e = read_logs(&[in_memory(&cols[..3], &["iq_cmd_a"])], 50, None).unwrap_err().to_string();
+    assert!(e.contains("column 'iq_cmd_a' is given without its values"), "{e}");
+    let e = read_logs(&[in_memory(&cols, &["extra"])], 50, None).unwrap_err().to_string();
+    assert!(e.contains("column 'extra' appears twice"), "{e}");
+    let e = read_logs(&[in_memory(&cols[..0], &[])], 50, None).unwrap_err().to_string();
+    assert!(e.contains("<DataFrame 0>"), "{e}");
 }
 
 #[cfg(unix)]

@@ -71,7 +71,7 @@ pub(crate) const EXPECTED_HEADER: &str =
 /// The rest of [`parse_sensorless_log`] once the header is read: the same reader goes on
 /// to the rows.
 pub(crate) fn sensorless_log_from_columns<R: Read>(
-    cols: ColumnReader<R>,
+    cols: ColumnReader<'_, R>,
     source: &str,
 ) -> Result<SensorlessLog, LogError> {
     for (c, need) in SENSORLESS_COLUMNS.iter().zip(NEEDS) {
