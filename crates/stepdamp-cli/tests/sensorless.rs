@@ -25,15 +25,26 @@ fn the_sensorless_plan_as_csv_has_the_documented_columns() {
     let (out, err) = text(&o);
     assert!(o.status.success(), "{err}");
     let mut lines = out.lines();
-    assert_eq!(lines.next(), Some("run,speed_rad_s,duration_s,standstill_s,ramp_s"));
+    assert_eq!(
+        lines.next(),
+        Some(
+            "run,mode,speed_rad_s,duration_s,standstill_s,ramp_s,holding_current_a,d_current_a,servo_bandwidth_hz,velocity_filter_hz"
+        )
+    );
     let rows: Vec<Vec<String>> = lines.map(|l| l.split(',').map(str::to_string).collect()).collect();
     assert_eq!(rows.len(), 4);
     for r in &rows {
-        let v: Vec<f64> = r[1..].iter().map(|x| x.parse().unwrap()).collect();
+        assert_eq!(
+            (r[1].as_str(), &r[7..]),
+            ("open-loop", &[String::new(), String::new(), String::new()][..]),
+            "{r:?}"
+        );
+        let v: Vec<f64> = r[2..7].iter().map(|x| x.parse().unwrap()).collect();
         assert!(v[0].abs() > 0.1 && v[1] > v[2] + v[3] && v[2] >= 0.02, "{r:?}");
+        assert_eq!(v[4], 1.9, "the open-loop runs hold patent-motor's holding current");
     }
     // Both directions at two speeds.
-    assert!(rows[0][1].parse::<f64>().unwrap() > 0.0 && rows[1][1].parse::<f64>().unwrap() < 0.0);
+    assert!(rows[0][2].parse::<f64>().unwrap() > 0.0 && rows[1][2].parse::<f64>().unwrap() < 0.0);
 }
 
 fn logs_in(dir: &Path) -> Vec<String> {

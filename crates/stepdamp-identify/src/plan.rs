@@ -67,11 +67,44 @@ impl Default for PlanOptions {
     }
 }
 
+/// How the drive runs a planned run: what it needs besides the speed profile.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[serde(tag = "mode", rename_all = "kebab-case")]
+pub enum RunDrive {
+    /// Servo on the encoder angle (the patent's identification runs), detent compensation off.
+    Servo {
+        /// Position-loop bandwidth, Hz.
+        servo_bandwidth_hz: f64,
+        /// Velocity-estimate filter, Hz.
+        velocity_filter_hz: f64,
+        /// d-axis current held, A (0: the patent's `i_d = 0`).
+        d_current_a: f64,
+    },
+    /// Open loop: the current vector of magnitude `holding_current_a` (peak, A) at the
+    /// commanded angle, compensation off.
+    OpenLoop {
+        /// Current-vector magnitude (each phase's peak), A.
+        holding_current_a: f64,
+    },
+}
+
+impl RunDrive {
+    /// Its name in the CSV's `mode` column and the JSON: `servo` or `open-loop`.
+    pub fn mode(&self) -> &'static str {
+        match self {
+            RunDrive::Servo { .. } => "servo",
+            RunDrive::OpenLoop { .. } => "open-loop",
+        }
+    }
+}
+
 /// One run to record.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct PlannedRun {
     /// File stem of its log, e.g. `run-1-fwd-1.017rad_s`.
     pub name: String,
+    /// How the drive runs it.
+    pub drive: RunDrive,
     /// Commanded speed in rad/s (sign = direction).
     pub speed_rad_s: f64,
     /// Standstill before the ramp, s.
@@ -140,8 +173,10 @@ impl std::fmt::Display for Plan {
     }
 }
 
-/// The columns of [`runs_csv`].
-pub const RUNS_CSV_HEADER: &str = "run,speed_rad_s,duration_s,standstill_s,ramp_s";
+/// The columns of [`runs_csv`]: the run, how the drive runs it, its speed profile, then the
+/// drive's settings (empty where they do not apply: `holding_current_a` is open loop's,
+/// the other three the servo's).
+pub const RUNS_CSV_HEADER: &str = "run,mode,speed_rad_s,duration_s,standstill_s,ramp_s,holding_current_a,d_current_a,servo_bandwidth_hz,velocity_filter_hz";
 
 /// The plan's runs as the text of `identify plan` prints them, each with its reason (both
 /// routes' plans).
@@ -159,26 +194,43 @@ pub(crate) fn write_runs(f: &mut std::fmt::Formatter<'_>, runs: &[PlannedRun]) -
 }
 
 /// One CSV row per run under [`RUNS_CSV_HEADER`] (`identify plan --format csv`), so a
-/// script or another drive can perform exactly the plan: a run starts at rest holding the
-/// current for `standstill_s`, ramps at constant acceleration to `speed_rad_s` over `ramp_s`,
-/// and holds it until `duration_s`; its log covers it all from `t = 0`.
+/// script or another drive can perform exactly the plan without reading its text: a run
+/// starts at rest holding the current for `standstill_s`, ramps at constant acceleration to
+/// `speed_rad_s` over `ramp_s`, and holds it until `duration_s`, in the `mode` and with the
+/// settings of its row; its log covers it all from `t = 0`.
 pub fn runs_csv(runs: &[PlannedRun]) -> Result<String, csv::Error> {
     #[derive(serde::Serialize)]
     struct Row<'a> {
         run: &'a str,
+        mode: &'a str,
         speed_rad_s: f64,
         duration_s: f64,
         standstill_s: f64,
         ramp_s: f64,
+        holding_current_a: Option<f64>,
+        d_current_a: Option<f64>,
+        servo_bandwidth_hz: Option<f64>,
+        velocity_filter_hz: Option<f64>,
     }
     let mut w = csv::Writer::from_writer(Vec::new());
     for r in runs {
+        let (hold, servo) = match r.drive {
+            RunDrive::OpenLoop { holding_current_a } => (Some(holding_current_a), None),
+            RunDrive::Servo { servo_bandwidth_hz, velocity_filter_hz, d_current_a } => {
+                (None, Some((d_current_a, servo_bandwidth_hz, velocity_filter_hz)))
+            }
+        };
         let row = Row {
             run: &r.name,
+            mode: r.drive.mode(),
             speed_rad_s: r.speed_rad_s,
             duration_s: r.duration_s,
             standstill_s: r.dwell_s,
             ramp_s: r.ramp_s,
+            holding_current_a: hold,
+            d_current_a: servo.map(|s| s.0),
+            servo_bandwidth_hz: servo.map(|s| s.1),
+            velocity_filter_hz: servo.map(|s| s.2),
         };
         w.serialize(row)?;
     }
@@ -382,6 +434,8 @@ fn planned_runs(sp: &Speeds, fb: f64, o: &PlanOptions) -> Vec<PlannedRun> {
             let st = steady(w);
             runs.push(PlannedRun {
                 name: format!("run-{i}-{dir}-{w:.3}rad_s"),
+                // The plan's profile sets the velocity filter at the bandwidth (`plan`).
+                drive: RunDrive::Servo { servo_bandwidth_hz: fb, velocity_filter_hz: fb, d_current_a: 0.0 },
                 speed_rad_s: sign * w,
                 dwell_s: dwell,
                 ramp_s: ramp,
@@ -441,9 +495,11 @@ mod tests {
         assert_eq!(lines.next(), Some(RUNS_CSV_HEADER));
         for (line, r) in lines.zip(&plan.runs) {
             let f: Vec<&str> = line.split(',').collect();
-            assert_eq!(f[0], r.name);
-            let v: Vec<f64> = f[1..].iter().map(|x| x.parse().unwrap()).collect();
-            assert_eq!(v, [r.speed_rad_s, r.duration_s, r.dwell_s, r.ramp_s]);
+            assert_eq!((f[0], f[1], f[6]), (r.name.as_str(), "servo", ""));
+            let v: Vec<f64> = f[2..6].iter().chain(&f[7..]).map(|x| x.parse().unwrap()).collect();
+            let fb = plan.servo_bandwidth_hz;
+            assert_eq!(v, [r.speed_rad_s, r.duration_s, r.dwell_s, r.ramp_s, 0.0, fb, plan.velocity_filter_hz]);
+            assert_eq!(r.drive, RunDrive::Servo { servo_bandwidth_hz: fb, velocity_filter_hz: fb, d_current_a: 0.0 });
         }
         assert_eq!(csv.lines().count(), plan.runs.len() + 1);
     }

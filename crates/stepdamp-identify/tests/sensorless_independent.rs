@@ -148,7 +148,12 @@ fn the_plan_csv_has_the_documented_header_and_every_row_parses() {
     let base = Profile::preset("patent-motor").unwrap();
     let p = plan(&base, &SensorlessPlanOptions::default()).unwrap();
     let csv = p.to_csv().unwrap();
-    assert_eq!(csv.lines().next(), Some("run,speed_rad_s,duration_s,standstill_s,ramp_s"));
+    assert_eq!(
+        csv.lines().next(),
+        Some(
+            "run,mode,speed_rad_s,duration_s,standstill_s,ramp_s,holding_current_a,d_current_a,servo_bandwidth_hz,velocity_filter_hz"
+        )
+    );
     assert_eq!(PLAN_CSV_HEADER, PLAN_HEADER);
     let rows = parse_plan(&csv).unwrap();
     assert_eq!(rows.len(), p.runs.len());
@@ -157,5 +162,6 @@ fn the_plan_csv_has_the_documented_header_and_every_row_parses() {
             (row.run.as_str(), row.speed_rad_s, row.duration_s, row.standstill_s, row.ramp_s),
             (r.name.as_str(), r.speed_rad_s, r.duration_s, r.dwell_s, r.ramp_s)
         );
+        assert_eq!((row.mode.as_str(), row.holding_current_a), ("open-loop", base.drive.holding_current_a));
     }
 }

@@ -25,7 +25,8 @@ pub(super) struct PlanArgs {
     pub(super) sensorless: bool,
     /// text; json: the plan (stepdamp_identify::plan::Plan, or
     /// stepdamp_identify::sensorless::plan::SensorlessPlan) as one line of JSON; csv: one
-    /// row per run, columns run,speed_rad_s,duration_s,standstill_s,ramp_s.
+    /// row per run, the columns of docs/files.md#plan-csv (run, mode, speed profile and the
+    /// drive's settings).
     #[arg(long, value_enum, default_value_t)]
     pub(super) format: PlanFormat,
 }
@@ -38,8 +39,8 @@ pub(super) enum PlanFormat {
     Text,
     /// One JSON object.
     Json,
-    /// One row per run (run,speed_rad_s,duration_s,standstill_s,ramp_s), for a script or
-    /// another drive to perform exactly the plan.
+    /// One row per run (docs/files.md#plan-csv: run, mode, speed profile and the drive's
+    /// settings), for a script or another drive to perform exactly the plan.
     Csv,
 }
 

@@ -19,7 +19,7 @@
 //! 4. **Duration**: [`SensorlessPlanOptions::electrical_periods`] electrical periods of
 //!    steady running, at least [`SensorlessPlanOptions::min_steady_s`].
 
-use crate::plan::{PlanError, PlannedRun};
+use crate::plan::{PlanError, PlannedRun, RunDrive};
 use std::f64::consts::TAU;
 use stepdamp_profile::Profile;
 
@@ -135,6 +135,7 @@ pub fn plan(base: &Profile, o: &SensorlessPlanOptions) -> Result<SensorlessPlan,
             let k_hz = f64::from(kmax) * nr * w / TAU;
             runs.push(PlannedRun {
                 name: format!("sensorless-{}-{dir}-{w:.3}rad_s", runs.len() + 1),
+                drive: RunDrive::OpenLoop { holding_current_a: base.drive.holding_current_a },
                 speed_rad_s: sign * w,
                 dwell_s: o.standstill_s,
                 ramp_s: o.ramp_s,

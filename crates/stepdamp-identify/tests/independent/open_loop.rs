@@ -28,7 +28,7 @@
 //! * **Log**: per period, `t_s, theta_cmd_rad, i_a_a, i_b_a, v_a_v, v_b_v` with the noisy
 //!   currents the loop saw at `t_s` and the mean voltage applied over `[t_s, t_s + Ts)`
 //!   (computed the period before).
-//! * **Runs**: exactly a row of the sensorless plan CSV (`run,speed_rad_s,duration_s,
+//! * **Runs**: exactly a row of the sensorless plan CSV (`run,mode,speed_rad_s,duration_s,
 //!   standstill_s,ramp_s`): at rest holding `I_hold` at `θ_cmd = 0` for `standstill_s`, a
 //!   constant-acceleration ramp to the speed over `ramp_s`, the speed to `duration_s`; the
 //!   log from `t = 0`. The drive starts with zero current, the rotor at rest a little off the
@@ -111,6 +111,8 @@ pub struct Drive {
 pub struct PlanRow {
     /// Run name.
     pub run: String,
+    /// How the drive runs it (`open-loop` for this simulator).
+    pub mode: String,
     /// Speed, rad/s (sign = direction).
     pub speed_rad_s: f64,
     /// Whole run, s.
@@ -119,24 +121,28 @@ pub struct PlanRow {
     pub standstill_s: f64,
     /// Ramp, s.
     pub ramp_s: f64,
+    /// The open-loop current-vector magnitude, A.
+    pub holding_current_a: f64,
 }
 
 /// The header the plan CSV must have.
-pub const PLAN_HEADER: &str = "run,speed_rad_s,duration_s,standstill_s,ramp_s";
+pub const PLAN_HEADER: &str = "run,mode,speed_rad_s,duration_s,standstill_s,ramp_s,holding_current_a,d_current_a,servo_bandwidth_hz,velocity_filter_hz";
 
-/// Parses the text of a sensorless plan CSV (header [`PLAN_HEADER`]).
+/// Parses the text of a sensorless plan CSV (header [`PLAN_HEADER`]): open-loop rows only,
+/// the servo's columns empty.
 pub fn parse_plan(text: &str) -> Result<Vec<PlanRow>, String> {
     let mut lines = text.lines();
     let header = lines.next().ok_or("empty plan")?;
     if header.trim() != PLAN_HEADER {
         return Err(format!("plan header {header:?}, expected {PLAN_HEADER:?}"));
     }
+    let width = PLAN_HEADER.split(',').count();
     lines
         .filter(|l| !l.trim().is_empty())
         .map(|l| {
             let f: Vec<&str> = l.split(',').collect();
-            if f.len() != 5 {
-                return Err(format!("plan row {l:?}: {} fields, expected 5", f.len()));
+            if f.len() != width {
+                return Err(format!("plan row {l:?}: {} fields, expected {width}", f.len()));
             }
             let num = |i: usize| {
                 f[i].trim()
@@ -145,19 +151,25 @@ pub fn parse_plan(text: &str) -> Result<Vec<PlanRow>, String> {
                     .filter(|v| v.is_finite())
                     .ok_or_else(|| format!("plan row {l:?}: field {i} ({}) is not a finite number", f[i]))
             };
+            if f[1] != "open-loop" || f[7..].iter().any(|x| !x.is_empty()) {
+                return Err(format!("plan row {l:?}: not an open-loop run"));
+            }
             let row = PlanRow {
                 run: f[0].trim().to_string(),
-                speed_rad_s: num(1)?,
-                duration_s: num(2)?,
-                standstill_s: num(3)?,
-                ramp_s: num(4)?,
+                mode: f[1].to_string(),
+                speed_rad_s: num(2)?,
+                duration_s: num(3)?,
+                standstill_s: num(4)?,
+                ramp_s: num(5)?,
+                holding_current_a: num(6)?,
             };
             if row.run.is_empty()
                 || row.standstill_s < 0.0
                 || row.ramp_s < 0.0
                 || row.duration_s < row.standstill_s + row.ramp_s
+                || row.holding_current_a <= 0.0
             {
-                return Err(format!("plan row {l:?}: inconsistent times"));
+                return Err(format!("plan row {l:?}: inconsistent times or current"));
             }
             Ok(row)
         })
