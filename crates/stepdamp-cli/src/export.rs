@@ -345,7 +345,11 @@ fn predict_export(
         let covered = predict::config(&tmc::covered_profile(scaled)?, Compensation::Angle, None)?;
         comps.push(("open loop, angle law on the covered part only".to_string(), Box::new(move |_| Ok(covered))));
     }
-    let pr = predict::predict_at(scaled, off, &comps, a.duration)?;
+    // A motor with flux harmonics is not symmetric in the direction of travel (the ripple
+    // that grows with the current follows the load angle's sign): simulated both ways.
+    let directions =
+        if scaled.motor.flux.is_default() { predict::Directions::Forward } else { predict::Directions::Both };
+    let pr = predict::predict_in(scaled, off, &comps, a.duration, directions)?;
     for p in &pr {
         out!("{p}");
     }

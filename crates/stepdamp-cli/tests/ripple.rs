@@ -96,3 +96,23 @@ fn a_flux_profile_exported_at_the_run_current_cancels_the_ripple_that_grows_with
     let db: f64 = line.split('(').nth(1).unwrap().split(" dB").next().unwrap().parse().unwrap();
     assert!(db >= 20.0, "order 4: {db} dB lower, expected at least 20: {text}");
 }
+
+#[test]
+fn an_export_for_a_flux_motor_is_predicted_in_both_directions_and_reports_the_worse() {
+    // The flux harmonics make the motor asymmetric in the direction of travel: on
+    // patent-motor-real the backward order-4 resonance is the larger (12.84 against
+    // 12.58 rad/s p-p without correction), so the row must come from a negative speed.
+    let dir = tempfile::tempdir().unwrap();
+    let motor = concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/profiles/patent-motor-real.toml");
+    let out = dir.path().join("x.gcode");
+    let o = stepdamp(&["export", "prusa", "--motor", motor, "--current", "1.9", "--out", out.to_str().unwrap()]);
+    let text = stdout(&o);
+    let line = text.lines().find(|l| l.trim_start().starts_with("order  4")).expect("order 4 predicted");
+    let speed: f64 = line.split(" at ").nth(1).unwrap().split(" rad/s").next().unwrap().trim().parse().unwrap();
+    assert!(speed < 0.0, "the worse direction is backward: {text}");
+    // Without flux the motor is symmetric: forward runs only, as before.
+    let o =
+        stepdamp(&["export", "prusa", "--motor", "patent-motor", "--current", "1.9", "--out", out.to_str().unwrap()]);
+    let text = stdout(&o);
+    assert!(text.lines().filter(|l| l.trim_start().starts_with("order")).all(|l| !l.contains(" at  -")), "{text}");
+}

@@ -189,14 +189,41 @@ pub fn predict_at(
     comps: &[(String, ConfigAt<'_>)],
     duration_s: f64,
 ) -> Result<Vec<Prediction>, ExportError> {
+    predict_in(p, off, comps, duration_s, Directions::Forward)
+}
+
+/// The directions a prediction runs in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Directions {
+    /// Positive speeds only (a correction that does not depend on the direction).
+    Forward,
+    /// Both signs of every speed (a correction with a table per direction): each row is
+    /// the worse of the two directions.
+    Both,
+}
+
+/// [`predict_at`] in `directions`.
+pub fn predict_in(
+    p: &Profile,
+    off: Config,
+    comps: &[(String, ConfigAt<'_>)],
+    duration_s: f64,
+    directions: Directions,
+) -> Result<Vec<Prediction>, ExportError> {
     let mut orders = p.detent_orders();
     orders.sort_unstable_by(|a, b| b.cmp(a));
+    let signs: &[f64] = match directions {
+        Directions::Forward => &[1.0],
+        Directions::Both => &[1.0, -1.0],
+    };
     let mut jobs: Vec<(usize, u16, f64)> = Vec::new(); // (config index, order, speed)
     for &k in &orders {
         let w = p.resonance_speed_rad_s(k);
         for g in GRID {
-            for ci in 0..=comps.len() {
-                jobs.push((ci, k, w * g));
+            for &sign in signs {
+                for ci in 0..=comps.len() {
+                    jobs.push((ci, k, sign * w * g));
+                }
             }
         }
     }
