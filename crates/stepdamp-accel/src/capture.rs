@@ -235,9 +235,10 @@ pub struct AccelCapture {
 /// `docs/accelerometer.md#accelerometer-captures`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Reconstruction {
-    /// Electrical periods per motor revolution: the motor's full steps per revolution / 4
-    /// (the firmware's `motor_steps / 4`, calibration.cpp:393): 50 for a 200-step (1.8°)
-    /// motor, 100 for a 400-step one (XL option, axes.cpp:31).
+    /// Electrical periods per motor revolution, the rotor's pole pairs (`Nr` in
+    /// `docs/design.md#the-plant`): full steps per revolution / 4 (the firmware's
+    /// `motor_steps / 4`, calibration.cpp:393): 50 for a 200-step (1.8°) motor, 100 for a
+    /// 400-step one (XL option, axes.cpp:31).
     pub periods_per_rev: u32,
     /// The commanded electrical angle (rad) at the start of the first settle block: the
     /// firmware's motor phase `zero_rotor_phase + pos_to_phase(position)`

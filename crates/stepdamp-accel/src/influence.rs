@@ -61,7 +61,7 @@ pub fn f2_quantile_95(m: f64) -> f64 {
 ///
 /// Refuses: a capture the firmware itself would reject ([`crate::Annotations::is_valid`]),
 /// `M974` (no constant speed), a harmonic at or above the accelerometer's Nyquist frequency
-/// (`n·P·|v| ≥ f_s/2`), fewer than 3 blocks.
+/// (`n·P·|v| ≥ f_s/2`), samples that do not cover the window, fewer than 3 blocks.
 pub fn harmonic_response(
     c: &AccelCapture,
     r: &Reconstruction,
@@ -95,36 +95,18 @@ pub fn harmonic_response(
     }
     let window = g.planned_times()?;
     let states = c.commanded(r)?;
-    let inside: Vec<usize> = (0..states.len())
-        .filter(|&k| states[k].t_s >= window.signal_start && states[k].t_s <= window.signal_end)
-        .collect();
-    let Some(&first) = inside.first() else {
-        return Err(c.unusable("no sample in the constant-speed window".into()));
-    };
-    let n = f64::from(harmonic);
-    let k_per = f64::from(periods_per_block);
-    // The angle at the window's start (constant speed inside it), and the whole blocks the
-    // window holds (1e-9: the exact count of a window of whole periods survives rounding).
-    let rate = TAU * f64::from(r.periods_per_rev) * states[first].speed_rev_s;
-    let theta0 = states[first].electrical_rad - rate * (states[first].t_s - window.signal_start);
-    let periods = f64::from(r.periods_per_rev) * speed * (window.signal_end - window.signal_start);
-    let complete = (periods / k_per + 1e-9).floor() as usize;
-    let mut sums: Vec<[f64; 9]> = Vec::new();
-    for &k in &inside {
-        let th = states[k].electrical_rad;
-        let b = ((th - theta0).abs() / TAU / k_per).floor() as usize;
-        if b >= sums.len() {
-            sums.resize(b + 1, [0.0; 9]);
-        }
-        let (s, co) = (n * th).sin_cos();
-        let y = c.samples[k];
-        let a = &mut sums[b];
-        // Normal equations of [1, sin, cos]: the upper triangle and the right-hand side.
-        for (slot, v) in a.iter_mut().zip([1.0, s, co, s * s, s * co, co * co, y, y * s, y * co]) {
-            *slot += v;
-        }
+    let (t_first, t_last) = (states.first().map_or(f64::NAN, |s| s.t_s), states.last().map_or(f64::NAN, |s| s.t_s));
+    if !(t_first <= window.signal_start && t_last >= window.signal_end) {
+        return Err(c.unusable(format!(
+            "the samples ({t_first:.3}…{t_last:.3} s) do not cover the constant-speed window {:.3}…{:.3} s: a cut capture or a wrong first_sample_s",
+            window.signal_start, window.signal_end
+        )));
     }
-    sums.truncate(complete);
+    // Whole blocks the window holds (1e-9: an exact count survives rounding). Bounded by
+    // the samples: the window is sampled and n·P·v < f_s/2, so periods < samples/2.
+    let periods = f64::from(r.periods_per_rev) * speed * (window.signal_end - window.signal_start);
+    let complete = (periods / f64::from(periods_per_block) + 1e-9).floor() as usize;
+    let sums = block_sums(c, &states, &window, r, harmonic, periods_per_block, complete);
     let estimates: Vec<Complex> = sums.iter().filter_map(solve_block).collect();
     let blocks = estimates.len();
     if blocks < 3 {
@@ -144,6 +126,37 @@ pub fn harmonic_response(
         periods_per_block,
         speed_rev_s: g.phase_direction() * speed,
     })
+}
+
+/// The normal equations of `[1, sin nθ, cos nθ]` (upper triangle, then the right-hand side)
+/// of each of the `complete` blocks of `per_block` whole periods from the window's start
+/// (where the angle is extrapolated from the first sample inside, at constant speed).
+fn block_sums(
+    c: &AccelCapture,
+    states: &[crate::capture::Commanded],
+    window: &crate::capture::PlannedTimes,
+    r: &Reconstruction,
+    harmonic: u32,
+    per_block: u32,
+    complete: usize,
+) -> Vec<[f64; 9]> {
+    let mut sums = vec![[0.0; 9]; complete];
+    let (t0, t1) = (window.signal_start, window.signal_end);
+    let inside = || states.iter().zip(&c.samples).filter(|(s, _)| s.t_s >= t0 && s.t_s <= t1);
+    let Some((first, _)) = inside().next() else { return sums };
+    let rate = TAU * f64::from(r.periods_per_rev) * first.speed_rev_s;
+    let theta0 = first.electrical_rad - rate * (first.t_s - t0);
+    let n = f64::from(harmonic);
+    for (st, &y) in inside() {
+        let th = st.electrical_rad;
+        let b = ((th - theta0).abs() / TAU / f64::from(per_block)).floor() as usize;
+        let Some(a) = sums.get_mut(b) else { continue };
+        let (s, co) = (n * th).sin_cos();
+        for (slot, v) in a.iter_mut().zip([1.0, s, co, s * s, s * co, co * co, y, y * s, y * co]) {
+            *slot += v;
+        }
+    }
+    sums
 }
 
 /// `a + i·b` of one block's least squares `y = c + a·sin + b·cos` (Cramer's rule on the 3×3

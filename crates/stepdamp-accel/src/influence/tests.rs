@@ -172,6 +172,10 @@ fn captures_that_cannot_give_a_response_are_refused() {
     assert!(e.contains("750.0 Hz, at or above the accelerometer's Nyquist 672.2 Hz"), "{e}");
     let e = harmonic_response(&c, &recon(0.0), 2, 300).unwrap_err().to_string();
     assert!(e.contains("2 block(s) of 300 electrical periods"), "{e}");
+    let mut cut = c.clone();
+    cut.samples.truncate(FS as usize * 5);
+    let e = harmonic_response(&cut, &recon(0.0), 2, 20).unwrap_err().to_string();
+    assert!(e.contains("do not cover the constant-speed window"), "{e}");
     let mut bad = c.clone();
     bad.annotations.movement_ok = false;
     assert!(harmonic_response(&bad, &recon(0.0), 2, 20).unwrap_err().to_string().contains("not a valid capture"));

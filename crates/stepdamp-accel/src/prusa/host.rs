@@ -11,8 +11,9 @@ use crate::capture::{Axis, Gcode, MAX_HARMONIC, TrialSweep};
 pub(crate) enum Line<'a> {
     /// Nothing (blank).
     Blank,
-    /// What the host sent: a calibration G-code if it is a valid one, else `None` (the
-    /// firmware refuses it with an `Error:` line and captures nothing).
+    /// A calibration G-code (`M973`, `M974`) the host sent: `Some` if the firmware accepts
+    /// it, `None` if it refuses it (with an `Error:` line, capturing nothing). Other
+    /// commands a host sends (its `M105` polls) are [`Line::Blank`].
     Sent(Option<Gcode>),
     /// What the printer printed, without the host's prefix and the line end.
     Printed(&'a str),
@@ -32,7 +33,7 @@ pub(crate) fn classify(line: &str) -> Line<'_> {
     }
     for sent in ["Send:", "SENDING:", ">>>"] {
         if let Some(rest) = l.strip_prefix(sent) {
-            return Line::Sent(gcode(rest));
+            return if is_calibration(rest) { Line::Sent(gcode(rest)) } else { Line::Blank };
         }
     }
     if let Some(rest) = l.strip_prefix("Recv:") {
@@ -41,11 +42,26 @@ pub(crate) fn classify(line: &str) -> Line<'_> {
     if l.is_empty() {
         return Line::Blank;
     }
-    if l.starts_with("M973") || l.starts_with("M974") {
+    if is_calibration(l) {
         // The command itself in a plain log (a terminal that echoes what was typed).
         return Line::Sent(gcode(l));
     }
     Line::Printed(l)
+}
+
+/// The words of a sent line without its line number `N…`, checksum `*…` and comment `;…`.
+fn words(sent: &str) -> impl Iterator<Item = &str> {
+    let l = sent.split([';', '*']).next().unwrap_or("");
+    let mut w = l.split_whitespace().peekable();
+    if w.peek().is_some_and(|x| x.len() > 1 && x.starts_with('N') && x[1..].chars().all(|c| c.is_ascii_digit())) {
+        w.next();
+    }
+    w
+}
+
+/// Whether a sent line is `M973` or `M974`.
+fn is_calibration(sent: &str) -> bool {
+    matches!(words(sent).next(), Some("M973" | "M974"))
 }
 
 /// Whether a printed line is what firmware and hosts say besides a capture: `ok`, `echo:`,
@@ -71,17 +87,7 @@ pub(crate) fn is_chatter(l: &str) -> bool {
 /// a number or nothing). The firmware's own checks (M97x.cpp:441–482 and 535–571 at
 /// `v6.3.1`) decide: a command it refuses captures nothing, so it is `None`.
 pub(crate) fn gcode(sent: &str) -> Option<Gcode> {
-    let mut l = sent.trim();
-    if let Some(i) = l.find(';') {
-        l = &l[..i];
-    }
-    if let Some(i) = l.find('*') {
-        l = &l[..i];
-    }
-    let mut words = l.split_whitespace().peekable();
-    if words.peek().is_some_and(|w| w.starts_with('N') && w[1..].chars().all(|c| c.is_ascii_digit())) {
-        words.next();
-    }
+    let mut words = words(sent);
     let code = words.next()?;
     let mut p: [Option<f64>; 26] = [None; 26];
     let mut seen = [false; 26];
@@ -142,7 +148,9 @@ mod tests {
         assert_eq!(g.to_string(), "M973 X F2 R10 H4 A1 B1 C0.02 D0.02");
         let Line::Sent(Some(g)) = classify(">>> M974 Y A0.5 B4 R-6") else { panic!() };
         assert_eq!(g.to_string(), "M974 Y A0.5 B4 R-6");
-        assert_eq!(classify("SENDING:M105"), Line::Sent(None));
+        assert_eq!(classify("SENDING:M105"), Line::Blank, "a host's poll is not a calibration command");
+        assert_eq!(classify("Send: N7 M973 X F2 H40*3"), Line::Sent(None), "refused by the firmware");
+        assert_eq!(classify("M9731 X"), Line::Printed("M9731 X"));
         assert_eq!(classify("  \r"), Line::Blank);
     }
 

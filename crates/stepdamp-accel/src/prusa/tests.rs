@@ -12,9 +12,9 @@ sampling_freq: 1344.52\r\nmovement_ok: true\r\naccel_error: 0\r\nstart_marker: 0
 end_marker: 5.85\r\nsignal_start: 0.43\r\nsignal_end: 5.43\r\n";
 
 /// The same through OctoPrint: `Recv: ` before every line, CR LF, the command it sent, its
-/// temperature polls and their replies in between.
+/// temperature polls (one between the command and the capture) and their replies in between.
 const OCTOPRINT: &str = "Send: N3 M973 X F2 R10 H2 A0.5 B0.5 C0.01 D0.01*12\r\n\
-Recv: echo:busy: processing\r\nRecv: 0, 0.01532\r\nRecv: 1, -0.04597\r\nSend: M105\r\n\
+Send: N4 M105*35\r\nRecv: echo:busy: processing\r\nRecv: 0, 0.01532\r\nRecv: 1, -0.04597\r\nSend: M105\r\n\
 Recv: 2, 0.00000\r\nRecv: T:25.0 /0.0 B:60.0 /60.0 @:0 B@:0\r\nRecv: 3, 9.80665\r\n\
 Recv: sampling_freq: 1344.52\r\nRecv: movement_ok: true\r\nRecv: accel_error: 0\r\n\
 Recv: start_marker: 0.20\r\nRecv: ok\r\nRecv: end_marker: 5.85\r\nRecv: signal_start: 0.43\r\n\
