@@ -476,6 +476,21 @@ mod tests {
     }
 
     #[test]
+    fn a_speed_sweep_runs_from_a_to_b_and_back_at_constant_acceleration() {
+        let g = Gcode::SpeedSweep { axis: Axis::Y, start_speed: 1.0, end_speed: 3.0, revs: -8.0 };
+        let t = g.planned_times().unwrap();
+        let c = capture(g, 9000, 1000.0);
+        let s = c.commanded(&R).unwrap();
+        let at = |time: f64| s[((time - R.first_sample_s) * 1000.0).round() as usize];
+        let mid = 0.5 * (t.signal_start + t.signal_end);
+        // R < 0 runs the phase up; 4 revs from 1 to 3 rev/s take 2 s, and 2 s back.
+        assert!((t.signal_end - t.signal_start - 4.0).abs() < 1e-12);
+        assert!((at(mid).speed_rev_s - 3.0).abs() < 2e-3, "{:?}", at(mid));
+        assert!((at(t.signal_start + 1.0).speed_rev_s - 2.0).abs() < 2e-3);
+        assert!((at(mid).motor_rev - at(t.signal_start).motor_rev - 4.0).abs() < 5e-3);
+    }
+
+    #[test]
     fn annotations_that_do_not_match_the_gcode_are_refused() {
         let mut c = capture(m973(10.0), 10, 1344.0);
         c.annotations.times.signal_end += 0.02;

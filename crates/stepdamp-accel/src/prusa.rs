@@ -229,6 +229,17 @@ impl Reader<'_> {
         Ok(())
     }
 
+    /// The open capture, opened at this line (with the pending G-code) if none is.
+    fn open_capture(&mut self) -> &mut Open {
+        let (line, pending) = (self.line, &mut self.pending);
+        self.open.get_or_insert_with(|| Open {
+            start: line,
+            gcode: pending.take(),
+            samples: Vec::new(),
+            annotations: Vec::new(),
+        })
+    }
+
     fn sample(&mut self, index: &str, value: &str, raw: &[u8]) -> Result<(), ReadError> {
         let form = "a sample `<index>, <value>` (`%d, %.5f`)";
         let index: u64 = index.parse().map_err(|_| self.unexpected(raw, form))?;
@@ -253,14 +264,7 @@ impl Reader<'_> {
             return Err(self.too_many("samples", MAX_TOTAL_SAMPLES as u64, "the reader's memory bound"));
         }
         self.total_samples += 1;
-        let line = self.line;
-        let pending = &mut self.pending;
-        let o = self.open.get_or_insert_with(|| Open {
-            start: line,
-            gcode: pending.take(),
-            samples: Vec::new(),
-            annotations: Vec::new(),
-        });
+        let o = self.open_capture();
         o.samples.push(value);
         Ok(())
     }
@@ -283,14 +287,7 @@ impl Reader<'_> {
                 v.ok_or_else(|| self.unexpected(raw, &annotation_form(key)))?
             }
         };
-        let line = self.line;
-        let pending = &mut self.pending;
-        let o = self.open.get_or_insert_with(|| Open {
-            start: line,
-            gcode: pending.take(),
-            samples: Vec::new(),
-            annotations: Vec::new(),
-        });
+        let o = self.open_capture();
         o.annotations.push(v);
         if o.annotations.len() == KEYS.len() {
             let o = self.open.take().expect("open above");

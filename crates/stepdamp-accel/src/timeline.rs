@@ -55,6 +55,17 @@ impl Builder {
         self.ramp(v0, v1, (v1 - v0).abs() / accel);
     }
 
+    /// The end both G-codes share: ramp down from `v`, settle, marker, settle; returns the
+    /// time the second marker begins (`end_marker`).
+    fn stop_from(&mut self, v: f64) -> f64 {
+        self.accel(v, 0.0, RAMP_ACCEL_REV_S2);
+        self.settle();
+        let end_marker = self.t;
+        self.marker();
+        self.settle();
+        end_marker
+    }
+
     /// `plan_marker_move` (calibration.cpp:1036–1048): out and back at ±2 rev/s.
     fn marker(&mut self) {
         let (v, a) = (MARKER_SPEED_REV_S, MARKER_ACCEL_REV_S2);
@@ -112,11 +123,7 @@ fn param_sweep(b: &mut Builder, v: f64, revs: f64) -> PlannedTimes {
     let dur = (revs + 2.0 * SETTLE_S * v) / v;
     b.ramp(v, v, dur);
     let constant_end = b.t;
-    b.accel(v, 0.0, RAMP_ACCEL_REV_S2);
-    b.settle();
-    let end_marker = b.t;
-    b.marker();
-    b.settle();
+    let end_marker = b.stop_from(v);
     PlannedTimes {
         start_marker,
         end_marker,
@@ -138,11 +145,7 @@ fn speed_sweep(b: &mut Builder, a: f64, v: f64, half: f64) -> PlannedTimes {
     b.ramp(a, v, dur);
     b.ramp(v, a, dur);
     let signal_end = b.t;
-    b.accel(a, 0.0, RAMP_ACCEL_REV_S2);
-    b.settle();
-    let end_marker = b.t;
-    b.marker();
-    b.settle();
+    let end_marker = b.stop_from(a);
     PlannedTimes { start_marker, end_marker, signal_start, signal_end }
 }
 
