@@ -45,6 +45,8 @@ pub const MAX_TOTAL_SAMPLES: usize = 1 << 22;
 pub const MAX_LINES: u64 = 2 * MAX_TOTAL_SAMPLES as u64;
 /// The most characters of a line shown in an error.
 pub const MAX_SHOWN_CHARS: usize = 60;
+/// The most characters of the source's name kept (in messages and [`AccelCapture::source`]).
+pub const MAX_NAME_CHARS: usize = 1000;
 
 /// The annotation keys, in the order printed.
 const KEYS: [&str; 7] =
@@ -137,9 +139,11 @@ struct Reader<'a> {
 }
 
 /// Every capture in `input`, in order; `file` names it in messages and in
-/// [`AccelCapture::source`]. Reads line by line: memory stays within [`MAX_LINE_BYTES`] per
+/// [`AccelCapture::source`] (escaped: [`stepdamp_out::input::printable`]). Reads line by line: memory stays within [`MAX_LINE_BYTES`] per
 /// line and [`MAX_TOTAL_SAMPLES`] samples.
 pub fn read_captures<R: Read>(input: R, file: &str) -> Result<Vec<AccelCapture>, ReadError> {
+    // A name with control characters (a path is any bytes) is shown escaped, like the text.
+    let file = &printable(file.as_bytes(), MAX_NAME_CHARS);
     let mut lines = BufReader::new(LineLimited::new(input, MAX_LINE_BYTES));
     let mut r = Reader { file, line: 0, pending: None, open: None, total_samples: 0, done: Vec::new() };
     let mut buf = Vec::with_capacity(128);

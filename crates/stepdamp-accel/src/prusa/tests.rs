@@ -130,6 +130,13 @@ fn a_capture_cut_short_is_refused() {
 }
 
 #[test]
+fn a_source_name_with_control_characters_is_shown_escaped() {
+    let e = read_captures(&b"nothing\n"[..], "evil\n\x1b[2J.txt").unwrap_err().to_string();
+    assert_eq!(e.lines().count(), 1, "{e}");
+    assert!(e.starts_with("evil\\u{a}\\u{1b}[2J.txt: no M973/M974 capture"), "{e}");
+}
+
+#[test]
 fn bytes_that_are_not_text_are_refused() {
     let e = read_captures(&b"0, 0.1\n\xff\xfe\n"[..], "b.bin").unwrap_err().to_string();
     assert_eq!(e, "b.bin:2: `\u{fffd}\u{fffd}`: expected UTF-8 text (a host's log)");
