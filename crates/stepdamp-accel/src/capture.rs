@@ -189,8 +189,9 @@ pub struct Annotations {
     /// accelerometer.cpp:206–212, and `get_sampling_rate`, lis2dh12_poller.hpp:192). `0.00`
     /// when the accelerometer failed.
     pub sampling_freq_hz: f64,
-    /// `movement_ok`: the move started within 300 ms and ended within 1.5 × its planned
-    /// duration (`capture_movement_samples`, calibration.cpp:1056–1105).
+    /// `movement_ok`: the move started within 300 ms and the planner was idle again within
+    /// 1.5 × `end_marker` of that (`capture_movement_samples`, calibration.cpp:1056–1105;
+    /// the timeout at 1148 and 1197).
     pub movement_ok: bool,
     /// `accel_error`: `PrusaAccelerometer::Error` as an integer (accelerometer.h:32–47). `0`
     /// is none; the other codes depend on the printer, which the output does not say: with
@@ -223,7 +224,8 @@ pub struct AccelCapture {
     pub gcode: Option<Gcode>,
     /// The samples in **m/s²**, in the order printed (index 0, 1, …): the acceleration
     /// projected on the moving axis (`project_to_axis`, calibration.cpp:240–269: Core One one
-    /// sensor axis, XL `(x ± y)/√2`, others one axis), from raw counts scaled by
+    /// sensor axis, other CoreXY printers `(x + y)/√2` for `X` and `(y − x)/√2` for `Y`,
+    /// the rest one axis), from raw counts scaled by
     /// `2·9.80665/max` (±2 g range; accelerometer_local.cpp:69–73 and
     /// accelerometer_utils.cpp:8–22 at `v6.3.1`), printed with 5 decimals.
     pub samples: Vec<f64>,
