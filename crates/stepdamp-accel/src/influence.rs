@@ -243,6 +243,39 @@ pub fn influence(y0: &Response, y1: &Response, trial: Complex) -> Result<Influen
     Ok(Influence { coefficient: c, coefficient_radius95: c_r, cancelling: u, cancelling_radius95: u_r })
 }
 
+/// [`influence`] straight from two `M973` captures of the same `H`, speed and direction: the
+/// baseline with no trial (`C = D = 0`) and one with a constant trial (`A = B`, `C = D`),
+/// whose `(C, A)` is the table item `(mag, pha)` and `scale` the firmware's (4 for ≥ 6.3.1).
+/// The harmonic is `H`; [`harmonic_response`] measures both with `periods_per_block`.
+pub fn influence_of_captures(
+    base: &AccelCapture,
+    trial: &AccelCapture,
+    r: &Reconstruction,
+    periods_per_block: u32,
+    scale: f64,
+) -> Result<Influence, InfluenceError> {
+    let sweep = |c: &AccelCapture| match c.require_gcode()? {
+        Gcode::ParamSweep { trial, .. } => trial.constant().map(|t| (trial.harmonic, t)).ok_or_else(|| {
+            c.unusable(format!(
+                "`{}` sweeps its trial: an influence step needs A = B and C = D",
+                c.gcode.expect("known")
+            ))
+        }),
+        g => Err(c.unusable(format!("`{g}` sweeps the speed: an influence step needs M973"))),
+    };
+    let (h0, (mag0, _)) = sweep(base)?;
+    let (h1, (mag, pha)) = sweep(trial)?;
+    if mag0 != 0.0 || h0 != h1 {
+        return Err(InfluenceError::Indeterminate(format!(
+            "{}:{} and {}:{}: the baseline needs C = D = 0 and the same H as the trial (H{h0} C{mag0}, H{h1})",
+            base.source, base.line, trial.source, trial.line
+        )));
+    }
+    let y0 = harmonic_response(base, r, h0, periods_per_block)?;
+    let y1 = harmonic_response(trial, r, h1, periods_per_block)?;
+    influence(&y0, &y1, table_shift(mag, pha, scale))
+}
+
 /// One step of an iteration: the shift applied and the response measured with it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Step {

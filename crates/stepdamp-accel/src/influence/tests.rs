@@ -83,6 +83,11 @@ fn the_influence_step_gives_the_known_cancelling_correction() {
     assert!((inf.coefficient - c_true).abs() <= inf.coefficient_radius95, "{inf:?}");
     assert!((inf.cancelling - want).abs() <= inf.cancelling_radius95, "{inf:?} vs {want:?}");
     assert!(inf.cancelling_radius95 < 0.1 * want.abs(), "{inf:?}");
+    // The same from the captures themselves: harmonic and trial read from their M973.
+    let same = influence_of_captures(&base, &trial, &recon(0.3), 20, SCALE).unwrap();
+    assert_eq!(same, inf);
+    let e = influence_of_captures(&trial, &trial, &recon(0.3), 20, SCALE).unwrap_err().to_string();
+    assert!(e.contains("the baseline needs C = D = 0"), "{e}");
     // In the table's form: the item that would cancel, in the firmware's 4x scale.
     let (m, p) = table_item(inf.cancelling, SCALE);
     assert!((m - want.abs() / SCALE).abs() <= inf.cancelling_radius95 / SCALE);
