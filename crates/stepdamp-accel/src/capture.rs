@@ -254,7 +254,8 @@ pub struct Reconstruction {
     /// 300 ms for that, calibration.cpp:1059–1073) and assumes 0, then finds the marker within
     /// ±50 ms by its energy (`locate_signal_markers`, calibration.cpp:293–318). An error `δt`
     /// turns harmonic `n` at speed `v` by `2π·n·P·v·δt` rad (`P` = [`Self::periods_per_rev`]),
-    /// which differs from capture to capture.
+    /// which differs from capture to capture. [`crate::timing::estimate_first_sample`]
+    /// estimates it from the markers.
     pub first_sample_s: f64,
     /// Belt travel per motor revolution (mm, the firmware's `rev_to_mm`, axes.cpp:22), used
     /// only for the settle blocks, which the firmware plans in mm (0.01 mm each).
@@ -272,6 +273,8 @@ pub struct Commanded {
     pub electrical_rad: f64,
     /// The commanded speed (rev/s), signed like the electrical angle.
     pub speed_rev_s: f64,
+    /// The commanded acceleration (rev/s²), signed like the electrical angle.
+    pub accel_rev_s2: f64,
 }
 
 /// Why a capture cannot be analysed; one line each.
@@ -395,12 +398,13 @@ impl AccelCapture {
         Ok((0..self.samples.len())
             .map(|k| {
                 let t_s = r.first_sample_s + k as f64 / fs;
-                let (d, v) = cursor.at(t_s);
+                let (d, v, a) = cursor.at(t_s);
                 Commanded {
                     t_s,
                     motor_rev: sign * d,
                     electrical_rad: r.start_angle_rad + scale * sign * d,
                     speed_rev_s: sign * v,
+                    accel_rev_s2: sign * a,
                 }
             })
             .collect())

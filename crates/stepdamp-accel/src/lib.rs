@@ -12,6 +12,7 @@
 //! - [`influence`]: the complex response of one harmonic in the constant-speed window with a
 //!   95 % interval, the influence coefficient of a known trial correction, the correction that
 //!   cancels the response, and the next step of an iteration.
+//! - [`timing`]: an estimate of when the first sample was taken, from the two marker moves.
 //!
 //! Formats, equations and sign conventions: `docs/accelerometer.md#accelerometer-captures`.
 
@@ -20,6 +21,7 @@ mod complex;
 pub mod influence;
 pub mod prusa;
 mod timeline;
+pub mod timing;
 
 pub use capture::{AccelCapture, Annotations, Axis, CaptureError, Commanded, Gcode, Reconstruction, TrialSweep};
 pub use influence::{Complex, Influence, InfluenceError, Next, Response, Step, StopReason};

@@ -163,15 +163,15 @@ pub(crate) struct Cursor<'a> {
 }
 
 impl Cursor<'_> {
-    /// `(distance, speed)` at `t`: at rest before the plan and after it.
-    pub(crate) fn at(&mut self, t: f64) -> (f64, f64) {
+    /// `(distance, speed, acceleration)` at `t`: at rest before the plan and after it.
+    pub(crate) fn at(&mut self, t: f64) -> (f64, f64, f64) {
         let s = &self.plan.segments;
-        let Some(last) = s.last() else { return (0.0, 0.0) };
+        let Some(last) = s.last() else { return (0.0, 0.0, 0.0) };
         if t <= s[0].t0 {
-            return (0.0, 0.0);
+            return (0.0, 0.0, 0.0);
         }
         if t >= last.t0 + last.dur {
-            return (last.d0 + 0.5 * (last.v0 + last.v1) * last.dur, 0.0);
+            return (last.d0 + 0.5 * (last.v0 + last.v1) * last.dur, 0.0, 0.0);
         }
         if s[self.i].t0 > t {
             self.i = 0;
@@ -182,6 +182,6 @@ impl Cursor<'_> {
         let g = s[self.i];
         let tau = t - g.t0;
         let acc = (g.v1 - g.v0) / g.dur;
-        (g.d0 + g.v0 * tau + 0.5 * acc * tau * tau, g.v0 + acc * tau)
+        (g.d0 + g.v0 * tau + 0.5 * acc * tau * tau, g.v0 + acc * tau, acc)
     }
 }
