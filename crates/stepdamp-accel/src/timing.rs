@@ -23,8 +23,11 @@ pub const MARKER_MARGIN_S: f64 = 0.01;
 /// The least normalised correlation at which the markers count as found: noise alone,
 /// correlated with the ~22 samples the two markers span, reaches 0.5 over a search.
 pub const MIN_SCORE: f64 = 0.8;
-/// The most grid points searched (bounds the work: 2²⁰ points, 0.78 s at 1344 Hz).
+/// The most grid points searched (2²⁰ points: 0.78 s at 1344 Hz).
 pub const MAX_GRID: usize = 1 << 20;
+/// The most sample comparisons of one search (2²⁸, well under a second): the grid times
+/// the samples in the marker windows (about 75 at 1344 Hz).
+pub const MAX_WORK: f64 = (1u64 << 28) as f64;
 
 /// An estimate of the planned time of sample 0.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -38,7 +41,7 @@ pub struct TimingEstimate {
 /// The offset in `[from_s, to_s]` (planned time of sample 0, s) at which the samples best
 /// match the commanded acceleration of both markers. `r` gives the belt (`mm_per_rev`) for
 /// the plan; its `first_sample_s` is not used. Refuses a search wider than [`MAX_GRID`]
-/// points and a best match below [`MIN_SCORE`].
+/// points or [`MAX_WORK`] comparisons, and a best match below [`MIN_SCORE`].
 pub fn estimate_first_sample(
     c: &AccelCapture,
     r: &Reconstruction,
@@ -59,9 +62,15 @@ pub fn estimate_first_sample(
             allowed: format!("finite, from < to, at most {MAX_GRID} steps of 1/(8·f_s) apart"),
         });
     }
+    let dur = 4.0 * MARKER_SPEED_REV_S / MARKER_ACCEL_REV_S2;
+    let per_point = (2.0 * ((dur + 2.0 * MARKER_MARGIN_S) * fs + 1.0)).min(c.samples.len() as f64);
+    if points * per_point > MAX_WORK {
+        return Err(c.unusable(format!(
+            "a search of {points} offsets × {per_point} samples at {fs} Hz: more than {MAX_WORK} comparisons"
+        )));
+    }
     c.check_annotations()?;
     let plan = g.plan(r.mm_per_rev)?;
-    let dur = 4.0 * MARKER_SPEED_REV_S / MARKER_ACCEL_REV_S2;
     let windows =
         [plan.times.start_marker, plan.times.end_marker].map(|t| (t - MARKER_MARGIN_S, t + dur + MARKER_MARGIN_S));
     let score = |tau: f64| {
