@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # Fuzzes the profile parser, the run-log reader, the static-table reader, the Prusa
-# read-back reader, the correction-table reader (`sweep --table`) and the study spec with
-# libFuzzer.
+# read-back reader, the correction-table reader (`sweep --table`), the study spec and the
+# accelerometer capture reader (M973/M974 output) with libFuzzer.
 #
-#   bash fuzz/run.sh [SECONDS_PER_TARGET] [TARGET…]      (default: 20 s each, all six)
+#   bash fuzz/run.sh [SECONDS_PER_TARGET] [TARGET…]      (default: 20 s each, all seven)
 #
 # Starts from the minimised seeds in fuzz/corpus/TARGET (kept in git) plus what earlier runs
 # found in fuzz/corpus-run/TARGET (not kept). Prints each target's executions; a crash stops
@@ -13,7 +13,7 @@ cd "$(dirname "$0")"
 secs=${1:-20}
 shift || true
 targets=("$@")
-[[ ${#targets[@]} -gt 0 ]] || targets=(profile log static_table prusa_readback correction_table study_spec)
+[[ ${#targets[@]} -gt 0 ]] || targets=(profile log static_table prusa_readback correction_table study_spec accel_capture)
 # cargo fuzz passes unstable (-Z) rustc flags; stable rustc accepts them with this.
 export RUSTC_BOOTSTRAP=1
 # No sanitizer: the code is safe Rust (unsafe_code is forbidden), so ASan would only slow
@@ -25,6 +25,7 @@ for t in "${targets[@]}"; do
     dict=dict/csv.dict
     [[ $t == profile || $t == study_spec ]] && dict=dict/profile.dict
     [[ $t == prusa_readback || $t == correction_table ]] && dict=dict/prusa.dict
+    [[ $t == accel_capture ]] && dict=dict/accel.dict
     mkdir -p "corpus-run/$t"
     log=$(mktemp)
     if ! cargo fuzz run "${flags[@]}" "$t" "corpus-run/$t" "corpus/$t" -- \

@@ -1,0 +1,28 @@
+//! # stepdamp-accel
+//!
+//! The accelerometer route to a Prusa printer's torque ripple: instead of Prusa's black-box
+//! search, read what the firmware's calibration G-codes print and identify the response of
+//! each harmonic of the motor's electrical angle, model-based. This crate is its first layer:
+//!
+//! - [`prusa`]: a bounded, streaming reader of `M973`/`M974` output as a host logged it
+//!   (OctoPrint, Pronterface, plain serial), every capture of a session in order.
+//! - [`capture`]: one capture ([`AccelCapture`]) and the commanded motor angle, electrical
+//!   angle and speed at each sample, rebuilt from the move the firmware plans, with what the
+//!   output does not say as explicit parameters ([`Reconstruction`]).
+//! - [`influence`]: the complex response of one harmonic in the constant-speed window with a
+//!   95 % interval, the influence coefficient of a known trial correction, the correction that
+//!   cancels the response, and the next step of an iteration.
+//! - [`timing`]: an estimate of when the first sample was taken, from the two marker moves.
+//!
+//! Formats, equations and sign conventions: `docs/accelerometer.md#accelerometer-captures`.
+
+pub mod capture;
+mod complex;
+pub mod influence;
+pub mod prusa;
+mod timeline;
+pub mod timing;
+
+pub use capture::{AccelCapture, Annotations, Axis, CaptureError, Commanded, Gcode, Reconstruction, TrialSweep};
+pub use influence::{Complex, Influence, InfluenceError, Next, Response, Step, StopReason};
+pub use prusa::{ReadError, read_captures};
