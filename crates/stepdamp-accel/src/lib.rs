@@ -12,6 +12,7 @@
 //! - [`influence`]: the complex response of one harmonic in the constant-speed window with a
 //!   95 % interval, the influence coefficient of a known trial correction, the correction that
 //!   cancels the response, and the next step of an iteration.
+//! - [`plan`]: the captures to record for an influence step, as G-code with the reasons.
 //! - [`timing`]: an estimate of when the first sample was taken, from the two marker moves.
 //!
 //! Formats, equations and sign conventions: `docs/accelerometer.md#accelerometer-captures`.
@@ -19,6 +20,7 @@
 pub mod capture;
 mod complex;
 pub mod influence;
+pub mod plan;
 pub mod prusa;
 mod timeline;
 pub mod timing;

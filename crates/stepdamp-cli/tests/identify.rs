@@ -391,3 +391,34 @@ fn a_missing_log_is_one_line_naming_it_with_the_reason_once() {
     assert!(e.starts_with(&format!("error: {l}: cannot read: ")), "{e}");
     assert_eq!(e.matches("os error").count(), 1, "{e}");
 }
+
+#[test]
+fn the_accelerometer_plan_prints_runnable_m973_pairs_sized_by_the_model() {
+    let o =
+        stepdamp(&["identify", "plan", "--accel", "--motor", "patent-motor", "--current-rms", "0.55", "--axis", "Y"]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let lines: Vec<&str> = out.lines().filter(|l| !l.starts_with(';')).collect();
+    assert_eq!(lines.len(), 12, "{out}");
+    assert!(lines.iter().all(|l| l.starts_with("M973 Y F")), "{out}");
+    // patent-motor at 0.55 A RMS: order 2 is 12 mN·m at phase 0.7, so its trial is
+    // 0.012/(0.3·0.778·4) = 0.01286 at A0.7.
+    assert!(out.contains("M973 Y F2 R-6 H2 A0.7 B0.7 C0.01286 D0.01286"), "{out}");
+    for (args, needle) in [
+        (vec!["--current-rms", "0.55", "--axis", "Z"], "--axis Z: Prusa phase stepping has axes X and Y"),
+        (vec!["--current-rms", "0.55", "--orders", "17"], "--orders 17"),
+        (vec![], "the run current is needed"),
+        (vec!["--current-rms", "0.55", "--format", "csv"], "does nothing with --accel"),
+    ] {
+        let mut a = vec!["identify", "plan", "--accel", "--motor", "patent-motor"];
+        a.extend(args);
+        let o = Command::new(env!("CARGO_BIN_EXE_stepdamp")).args(&a).output().expect("runs");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains(needle), "{a:?}: {err}");
+    }
+    let o = Command::new(env!("CARGO_BIN_EXE_stepdamp"))
+        .args(["identify", "plan", "--motor", "patent-motor", "--axis", "X"])
+        .output()
+        .expect("runs");
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("do nothing without --accel"));
+}

@@ -3,7 +3,11 @@
 
 use super::args::{Orders, parse_orders, plan_options};
 use crate::common::{load_motor, print_json};
-use anyhow::Result;
+use crate::export::CurrentArgs;
+use anyhow::{Result, bail};
+use stepdamp_accel::plan::{CapturePlanOptions, plan_captures};
+use stepdamp_accel::{Axis, capture::MAX_HARMONIC};
+use stepdamp_export::{Correction, prusa};
 use stepdamp_identify::plan::{PlannedRun, plan, runs_csv};
 use stepdamp_identify::sensorless::plan::{SensorlessPlanOptions, plan as sensorless_plan};
 
@@ -23,6 +27,17 @@ pub(super) struct PlanArgs {
     /// and currents), with a standstill that trims R.
     #[arg(long)]
     pub(super) sensorless: bool,
+    /// Plan accelerometer captures on a Prusa printer (firmware >= 6.3.1) instead: per order
+    /// and direction an M973 without and one with a known trial correction (the model's at
+    /// the run current), printed as G-code with the reasons (docs/accelerometer.md#planning-captures).
+    #[arg(long, conflicts_with = "sensorless")]
+    pub(super) accel: bool,
+    /// With --accel: the motor, X or Y (on CoreXY the A or B motor).
+    #[arg(long, value_name = "X|Y")]
+    pub(super) axis: Option<String>,
+    /// With --accel: the run current the trials are sized for.
+    #[command(flatten)]
+    pub(super) current: CurrentArgs,
     /// text; json: the plan (stepdamp_identify::plan::Plan, or
     /// stepdamp_identify::sensorless::plan::SensorlessPlan) as one line of JSON; csv: one
     /// row per run, the columns of docs/files.md#plan-csv (run, mode, speed profile and the
@@ -47,6 +62,14 @@ pub(super) enum PlanFormat {
 /// Runs `stepdamp identify plan`.
 pub(super) fn run_plan_cmd(a: PlanArgs) -> Result<()> {
     let motor = load_motor(&a.motor)?;
+    if a.accel {
+        return run_accel_plan(&a, &motor);
+    }
+    if a.axis.is_some() || a.current.given() {
+        bail!(
+            "--axis and --current/--current-rms do nothing without --accel (the drive runs use the profile's current)"
+        );
+    }
     if a.sensorless {
         let p = sensorless_plan(&motor, &sensorless_options(&a.orders.0, a.periods)?)?;
         return print_plan(&p, &p, &p.runs, a.format);
@@ -78,5 +101,34 @@ fn print_plan(
         PlanFormat::Json => print_json(json)?,
         PlanFormat::Csv => out!("{}", runs_csv(runs)?),
     }
+    Ok(())
+}
+
+/// `identify plan --accel`: the M973 captures of an influence step, trials from the model.
+fn run_accel_plan(a: &PlanArgs, motor: &stepdamp_sim::Profile) -> Result<()> {
+    if a.format != PlanFormat::Text {
+        bail!("--format {:?} does nothing with --accel: the plan is G-code (text)", a.format);
+    }
+    let axis = match a.axis.as_deref() {
+        None | Some("X" | "x") => Axis::X,
+        Some("Y" | "y") => Axis::Y,
+        Some(o) => bail!("--axis {}: Prusa phase stepping has axes X and Y", stepdamp_export::escape::line(o)),
+    };
+    let run = a.current.run_current()?;
+    // The model's correction at the run current, in the firmware's table form (one home:
+    // the exporter's fit), is each order's trial.
+    let c = Correction::from_profile(motor, Some(run.peak_a()))?;
+    let fitted = prusa::fit(&c, prusa::Firmware::V6_3_1)?;
+    let mut harmonics = Vec::new();
+    for &k in &a.orders.0 {
+        let n = u32::from(k);
+        if n > MAX_HARMONIC {
+            bail!("--orders {k}: M973 takes harmonics 1..={MAX_HARMONIC}");
+        }
+        let (mag, pha) = (fitted.correction.backward.mag[k as usize], fitted.correction.backward.pha[k as usize]);
+        harmonics.push((n, (mag > 0.0).then_some((f64::from(mag), f64::from(pha)))));
+    }
+    let o = CapturePlanOptions { harmonics, ..CapturePlanOptions::new(axis, motor.motor.pole_pairs) };
+    out!("{}", plan_captures(&o)?);
     Ok(())
 }
