@@ -351,4 +351,4 @@ pub fn next_shift(steps: &[Step], window: usize, min_fall: f64) -> Result<Next, 
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

@@ -13,6 +13,8 @@
 //!   95 % interval, the influence coefficient of a known trial correction, the correction that
 //!   cancels the response, and the next step of an iteration.
 //! - [`plan`]: the captures to record for an influence step, as G-code with the reasons.
+//! - [`refine`]: one influence step from a session's captures, per harmonic and direction,
+//!   added to the table in use.
 //! - [`timing`]: an estimate of when the first sample was taken, from the two marker moves.
 //!
 //! Formats, equations and sign conventions: `docs/accelerometer.md#accelerometer-captures`.
@@ -22,6 +24,7 @@ mod complex;
 pub mod influence;
 pub mod plan;
 pub mod prusa;
+pub mod refine;
 mod timeline;
 pub mod timing;
 

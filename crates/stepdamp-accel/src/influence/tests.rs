@@ -9,7 +9,7 @@ const SPEED: f64 = 1.5;
 /// The firmware's scale for ≥ 6.3.1 (`docs/exporters.md#the-table-and-its-scale`).
 const SCALE: f64 = 4.0;
 
-fn recon(start_angle_rad: f64) -> Reconstruction {
+pub(crate) fn recon(start_angle_rad: f64) -> Reconstruction {
     Reconstruction { periods_per_rev: 50, start_angle_rad, first_sample_s: 0.0, mm_per_rev: 40.0 }
 }
 
@@ -27,7 +27,7 @@ fn printed(x: f64) -> f64 {
 /// A synthetic capture of `g`: harmonic 2 with response `y`, a harmonic 4 and a DC offset
 /// that the lock-in must ignore, Gaussian noise of `sd` m/s², seeded. Samples follow the
 /// angle of `truth`; the annotations are printed as the firmware rounds them.
-fn synthetic(g: Gcode, y: Complex, sd: f64, seed: u64, truth: &Reconstruction) -> AccelCapture {
+pub(crate) fn synthetic(g: Gcode, y: Complex, sd: f64, seed: u64, truth: &Reconstruction) -> AccelCapture {
     let t = g.planned_times().unwrap();
     let times = PlannedTimes {
         start_marker: printed(t.start_marker),
