@@ -70,6 +70,10 @@ pub struct Refined {
     pub item: (f64, f64),
     /// 95 % radius of the new item's phasor, table units.
     pub item_radius95: f64,
+    /// What the linear model expects of the response with the new item: within this
+    /// radius of zero (m/s², `|C|·` the cancelling shift's 95 % radius). An expectation to
+    /// measure, not a simulation.
+    pub expected_residual95: f64,
 }
 
 /// The constant trial `(harmonic, mag, pha)` of an `M973`, or why the capture is not one.
@@ -171,6 +175,7 @@ fn refine_pair(
         in_use: old,
         item: table_item(new, o.scale),
         item_radius95: inf.cancelling_radius95 / o.scale,
+        expected_residual95: inf.coefficient.abs() * inf.cancelling_radius95,
     })
 }
 

@@ -1,0 +1,195 @@
+//! `stepdamp accel`: the accelerometer route on a Prusa printer (docs/accelerometer.md).
+//! Translation only: the captures are read, grouped and refined by `stepdamp-accel`, the
+//! table written by `stepdamp-export`'s Prusa writer.
+
+use crate::Global;
+use crate::common::{load_motor, write_atomic};
+use crate::export::CurrentArgs;
+use anyhow::{Context, Result, bail};
+use std::path::PathBuf;
+use stepdamp_accel::refine::{InUse, RefineOptions, Refined, TABLE_ITEMS, Timing, refine};
+use stepdamp_accel::{AccelCapture, Axis};
+use stepdamp_export::escape;
+use stepdamp_export::prusa::{self, Firmware, Fitted, PrusaCorrection, Spectrum, gcode};
+
+/// `stepdamp accel …`.
+#[derive(clap::Subcommand, Debug)]
+pub enum AccelCommand {
+    /// One influence step from recorded M973 captures (`identify plan --accel` lists them):
+    /// the Prusa table (M971 lines, firmware >= 6.3.1) that cancels what they measured.
+    Refine(RefineArgs),
+}
+
+/// How the time of each capture's first sample is found.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TimingArg {
+    /// From the capture's two marker moves.
+    Markers,
+    /// 0: the firmware's own assumption.
+    Planned,
+}
+
+/// Arguments of `stepdamp accel refine`.
+#[derive(clap::Args, Debug)]
+pub struct RefineArgs {
+    /// A session log holding the captures (a host's log, e.g. OctoPrint's serial.log, or the
+    /// plain serial output); repeat for several. Each capture's G-code must be in the log
+    /// (the host's echo of the command it sent).
+    #[arg(long = "log", required = true, value_name = "FILE")]
+    logs: Vec<PathBuf>,
+    /// Motor profile (preset or TOML): its pole pairs are the electrical periods per revolution.
+    #[arg(long, value_name = "PRESET|FILE")]
+    motor: String,
+    /// The table in use while the captures were recorded: a file with its M971 lines (what
+    /// `export prusa` wrote, or the printer's M972 read-back), or `none`.
+    #[arg(long, value_name = "FILE|none")]
+    in_use: String,
+    /// The motor the captures moved: X or Y (on CoreXY the A or B motor).
+    #[arg(long, value_name = "X|Y")]
+    axis: String,
+    /// Belt travel per motor revolution, mm (GT2 belt, 16-tooth pulley: 32).
+    #[arg(long, default_value_t = 32.0)]
+    mm_per_rev: f64,
+    /// Whole electrical periods per lock-in block.
+    #[arg(long, default_value_t = 20)]
+    periods_per_block: u32,
+    /// How the first sample's time is found.
+    #[arg(long, value_enum, default_value_t = TimingArg::Markers)]
+    timing: TimingArg,
+    /// The run current the captures were recorded at (the table is valid there).
+    #[command(flatten)]
+    current: CurrentArgs,
+    /// Where to write the new table's G-code.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+/// Runs `stepdamp accel`.
+pub fn run(c: AccelCommand, _g: &Global) -> Result<()> {
+    match c {
+        AccelCommand::Refine(a) => run_refine(a),
+    }
+}
+
+fn run_refine(a: RefineArgs) -> Result<()> {
+    let (axis, letter) = match a.axis.as_str() {
+        "X" | "x" => (Axis::X, 'X'),
+        "Y" | "y" => (Axis::Y, 'Y'),
+        o => bail!("--axis {}: Prusa phase stepping has axes X and Y", escape::line(o)),
+    };
+    if !(a.mm_per_rev.is_finite() && (1.0..=1000.0).contains(&a.mm_per_rev)) {
+        bail!("--mm-per-rev {:e}: must be in 1..=1000 mm", a.mm_per_rev);
+    }
+    let run = a.current.run_current()?;
+    let motor = load_motor(&a.motor)?;
+    let captures = read_captures(&a.logs, axis)?;
+    let old = in_use(&a.in_use, letter)?;
+    let o = RefineOptions {
+        periods_per_rev: u32::from(motor.motor.pole_pairs),
+        mm_per_rev: a.mm_per_rev,
+        periods_per_block: a.periods_per_block,
+        scale: Firmware::V6_3_1.scale(),
+        timing: match a.timing {
+            TimingArg::Markers => Timing::Markers,
+            TimingArg::Planned => Timing::Planned,
+        },
+    };
+    let spectra = |s: &Spectrum| std::array::from_fn(|n| (f64::from(s.mag[n]), f64::from(s.pha[n])));
+    let old_items = InUse { forward: spectra(&old.forward), backward: spectra(&old.backward) };
+    let refined = refine(&captures, &o, &old_items)?;
+    let mut new = old;
+    for r in &refined {
+        print_refined(r)?;
+        let s = if r.phase_direction > 0.0 { &mut new.forward } else { &mut new.backward };
+        let n = r.harmonic as usize;
+        s.mag[n] = gcode::quantize(r.item.0, gcode::MAG_DECIMALS);
+        s.pha[n] = gcode::quantize(r.item.1, gcode::PHA_DECIMALS);
+    }
+    let text = write_table(&new, letter, &motor.name, run)?;
+    write_atomic(&a.out, text.as_bytes())?;
+    outln!("not simulated: a measured correction, valid at {run}; record the baselines again with it to confirm");
+    outln!("wrote {} (M970 {letter}0, M971 {letter} F|B x{TABLE_ITEMS}, M970 {letter}1)", a.out.display());
+    Ok(())
+}
+
+/// Every capture of every log, refusing one of another axis.
+fn read_captures(logs: &[PathBuf], axis: Axis) -> Result<Vec<AccelCapture>> {
+    let mut all = Vec::new();
+    for path in logs {
+        for c in stepdamp_accel::prusa::read_file(path)? {
+            if let Some(g) = c.gcode
+                && g.axis() != axis
+            {
+                bail!("{}:{}: `{g}` moved the other axis than --axis", escape::line(&c.source), c.line);
+            }
+            all.push(c);
+        }
+    }
+    if all.is_empty() {
+        bail!("no captures in the logs given");
+    }
+    Ok(all)
+}
+
+/// The table in use: `none`, or the M971 lines of a file for `axis`.
+fn in_use(arg: &str, axis: char) -> Result<PrusaCorrection> {
+    if arg == "none" {
+        let zero = Spectrum::default();
+        return Ok(PrusaCorrection { forward: zero, backward: zero, firmware: Firmware::V6_3_1 });
+    }
+    let path = PathBuf::from(arg);
+    let bytes = prusa::read::read_capped(&path)?;
+    let text = String::from_utf8(bytes).with_context(|| format!("{}: not UTF-8 text", escape::line(arg)))?;
+    let (c, _) = prusa::parse_text(&text, Some(axis), arg)?;
+    if c.firmware != Firmware::V6_3_1 {
+        bail!(
+            "{}: an M973 (6.2) table; the captures need firmware >= 6.3.1, whose table is M971 lines",
+            escape::line(arg)
+        );
+    }
+    Ok(c)
+}
+
+/// The G-code of `c`, refused when its table would not fit the firmware's int8 shifts.
+fn write_table(c: &PrusaCorrection, axis: char, name: &str, run: stepdamp_export::RunCurrent) -> Result<String> {
+    let peak = [c.forward, c.backward].iter().map(|s| s.peak_shift(c.firmware)).try_fold(0, |m, p| p.map(|p| p.max(m)));
+    let Some(peak) = peak.filter(|&p| p <= prusa::SHIFT_LIMIT) else {
+        bail!(
+            "the refined table does not fit Prusa's int8 shifts (±{} of 4096): a smaller trial, or fewer harmonics per step",
+            prusa::SHIFT_LIMIT
+        );
+    };
+    let fitted = Fitted { correction: *c, kept: 1.0, peak_shift: peak, wanted_peak_shift: peak as f64 };
+    let text = gcode::write(&fitted, axis, &gcode::Header { profile: name, current: run })?;
+    let (back, _) = prusa::parse_text(&text, Some(axis), "the refined G-code")?;
+    if back != *c {
+        bail!("internal: the refined G-code reads back to another table");
+    }
+    Ok(text)
+}
+
+fn print_refined(r: &Refined) -> Result<()> {
+    let dir = if r.phase_direction > 0.0 { "forward" } else { "backward" };
+    let (b, t, i) = (&r.baseline, &r.trial, &r.influence);
+    outln!(
+        "harmonic {:>2} {dir:<8} at {:+.2} rev/s: baseline {:.4} ± {:.4} m/s², with the trial {:.4} ± {:.4} m/s²",
+        r.harmonic,
+        r.speed_rev_s,
+        b.value.abs(),
+        b.radius95,
+        t.value.abs(),
+        t.radius95
+    );
+    outln!(
+        "  influence {:.3e} ± {:.1e} m/s² per rad; item ({:.5}, {:+.4}) -> ({:.5} ± {:.5}, {:+.4}); expected residual within {:.4} m/s²",
+        i.coefficient.abs(),
+        i.coefficient_radius95,
+        r.in_use.0,
+        r.in_use.1,
+        r.item.0,
+        r.item_radius95,
+        r.item.1,
+        r.expected_residual95
+    );
+    Ok(())
+}

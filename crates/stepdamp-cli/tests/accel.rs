@@ -1,0 +1,132 @@
+//! `stepdamp accel refine` on a session log written as the firmware and a host print it.
+
+use std::f64::consts::TAU;
+use std::fmt::Write as _;
+use std::process::{Command, Output};
+use stepdamp_accel::capture::{Annotations, PlannedTimes};
+use stepdamp_accel::{AccelCapture, Axis, Gcode, Reconstruction, TrialSweep};
+
+fn stepdamp(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_stepdamp")).args(args).output().expect("runs")
+}
+
+/// Rounds like the firmware's `Print::printFloat(x, 2)`: add 0.005, truncate.
+fn printed(x: f64) -> f64 {
+    ((x + 0.005) * 100.0).floor() / 100.0
+}
+
+fn m973(revs: f64, mag: f64, pha: f64) -> Gcode {
+    let trial = TrialSweep { harmonic: 4, pha_start: pha, pha_end: pha, mag_start: mag, mag_end: mag };
+    Gcode::ParamSweep { axis: Axis::X, speed: 2.0, revs, trial }
+}
+
+/// One capture of `g` as OctoPrint logs it: the command sent, then the samples
+/// (`"%d, %.5f\n"`) of a head whose harmonic 4 is `y` (m/s², `Im(y·e^{4iθ})`) plus a
+/// harmonic 1 and an offset, then the seven annotations with CR LF.
+fn capture_text(g: Gcode, y: (f64, f64)) -> String {
+    let t = g.planned_times().unwrap();
+    let times = PlannedTimes {
+        start_marker: printed(t.start_marker),
+        end_marker: printed(t.end_marker),
+        signal_start: printed(t.signal_start),
+        signal_end: printed(t.signal_end),
+    };
+    let fs = 1344.37;
+    let annotations = Annotations { sampling_freq_hz: fs, movement_ok: true, accel_error: 0, times };
+    let n = ((t.end_marker + 0.3) * fs) as usize;
+    let c = AccelCapture { source: "gen".into(), line: 1, gcode: Some(g), samples: vec![0.0; n], annotations };
+    let r = Reconstruction { periods_per_rev: 50, start_angle_rad: 0.0, first_sample_s: 0.0, mm_per_rev: 32.0 };
+    let mut s = format!("Send: N7 {g}*33\r\n");
+    for (i, st) in c.commanded(&r).unwrap().iter().enumerate() {
+        let th = st.electrical_rad;
+        let v = 0.2 + y.0 * (4.0 * th + y.1).sin() + 0.3 * (th - 0.4).sin();
+        let _ = write!(s, "Recv: {i}, {v:.5}\r\n");
+    }
+    let _ = write!(
+        s,
+        "Recv: sampling_freq: {fs:.2}\r\nRecv: movement_ok: true\r\nRecv: accel_error: 0\r\n\
+         Recv: start_marker: {:.2}\r\nRecv: end_marker: {:.2}\r\nRecv: signal_start: {:.2}\r\nRecv: signal_end: {:.2}\r\nRecv: ok\r\n",
+        times.start_marker, times.end_marker, times.signal_start, times.signal_end
+    );
+    s
+}
+
+#[test]
+fn refine_writes_the_m971_table_that_cancels_what_the_captures_measured() {
+    // The head's harmonic 4: Y0 = 0.8·e^{1.2i} m/s² forward, 0.5·e^{-0.3i} backward, and a
+    // known influence C = 20·e^{-0.5i} m/s² per rad of shift; the trial (0.004, 0.6) is
+    // U = 4·0.004·e^{0.6i} rad.
+    let c = |u: (f64, f64)| (20.0 * 4.0 * u.0, -0.5 + u.1);
+    let add = |a: (f64, f64), b: (f64, f64)| {
+        let (x, y) = (a.0 * a.1.cos() + b.0 * b.1.cos(), a.0 * a.1.sin() + b.0 * b.1.sin());
+        (x.hypot(y), y.atan2(x))
+    };
+    let (y_fwd, y_bwd, trial) = ((0.8, 1.2), (0.5, -0.3), (0.004, 0.6));
+    let mut log = String::new();
+    for (revs, y0) in [(-8.0, y_fwd), (8.0, y_bwd)] {
+        log += &capture_text(m973(revs, 0.0, 0.0), y0);
+        log += &capture_text(m973(revs, trial.0, trial.1), add(y0, c(trial)));
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let session = dir.path().join("serial.log");
+    std::fs::write(&session, log).unwrap();
+    let out = dir.path().join("x.gcode");
+    let o = stepdamp(&[
+        "accel",
+        "refine",
+        "--log",
+        session.to_str().unwrap(),
+        "--motor",
+        "patent-motor",
+        "--in-use",
+        "none",
+        "--axis",
+        "X",
+        "--current-rms",
+        "0.55",
+        "--timing",
+        "planned",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}{text}", String::from_utf8_lossy(&o.stderr));
+    assert!(text.contains("not simulated: a measured correction"), "{text}");
+    let gcode = std::fs::read_to_string(&out).unwrap();
+    let (table, _) = stepdamp_export::prusa::parse_text(&gcode, Some('X'), "x.gcode").unwrap();
+    // U* = −Y0/C, as a table item (mag = |U*|/4, pha = arg U*).
+    for (s, y0) in [(table.forward, y_fwd), (table.backward, y_bwd)] {
+        let (mag, pha) = (y0.0 / 20.0 / 4.0, (y0.1 + 0.5 + std::f64::consts::PI).rem_euclid(TAU));
+        let got = (f64::from(s.mag[4]), f64::from(s.pha[4]).rem_euclid(TAU));
+        assert!(
+            (got.0 - mag).abs() < 1e-3 * mag + 1e-6 && (got.1 - pha).abs() < 2e-3,
+            "{got:?} against {:?}",
+            (mag, pha)
+        );
+        assert!(s.mag.iter().enumerate().all(|(n, &m)| n == 4 || m == 0.0), "only harmonic 4 changes");
+    }
+}
+
+#[test]
+fn refine_refuses_what_it_cannot_use_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let session = dir.path().join("serial.log");
+    std::fs::write(&session, capture_text(m973(8.0, 0.0, 0.0), (0.5, 0.1))).unwrap();
+    let out = dir.path().join("x.gcode");
+    let base =
+        ["accel", "refine", "--log", session.to_str().unwrap(), "--motor", "patent-motor", "--current-rms", "0.55"];
+    for (extra, needle) in [
+        (vec!["--in-use", "none", "--axis", "X"], "has no constant trial"),
+        (vec!["--in-use", "none", "--axis", "Y"], "moved the other axis than --axis"),
+        (vec!["--in-use", "none", "--axis", "Z"], "--axis Z: Prusa phase stepping has axes X and Y"),
+        (vec!["--in-use", "/nonexistent/t.gcode", "--axis", "X"], "/nonexistent/t.gcode"),
+    ] {
+        let mut a: Vec<&str> = base.to_vec();
+        a.extend(extra);
+        a.extend(["--out", out.to_str().unwrap()]);
+        let o = stepdamp(&a);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains(needle) && err.lines().count() == 1, "{a:?}: {err}");
+        assert!(!out.exists(), "nothing written on an error");
+    }
+}
