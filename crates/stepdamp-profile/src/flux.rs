@@ -145,6 +145,20 @@ impl FluxShape {
         })
     }
 
+    /// The flux linkage per unit of the fundamental `Km/Nr`, `(ψ_a, ψ_b)·Nr/Km` at `θe`:
+    /// `Σ h_n·cos(n·θe + a_n)` and `(1 + g)·Σ h_n·cos(n·θe + a_n − n·π/2)` (module doc); the
+    /// pure sine gives `(cos θe, sin θe)`.
+    pub fn linkage(&self, theta_e: f64) -> (f64, f64) {
+        // S's term `ca·sin nθ + sa·cos nθ = n·h·sin(nθ + a)`, so ψ's `h·cos(nθ + a)` is
+        // `(ca·cos nθ − sa·sin nθ)/n`.
+        let (a, b) = self.terms.iter().fold((0.0, 0.0), |(a, b), &(n, [ca, sa], [cb, sb])| {
+            let k = f64::from(n);
+            let (s, c) = (k * theta_e).sin_cos();
+            (a + (ca * c - sa * s) / k, b + (cb * c - sb * s) / k)
+        });
+        (a, self.b_gain * b)
+    }
+
     /// Motor torque `τ_m = −Km·(i_a·S_a + (1 + g)·i_b·S_b)` in N·m at `θe`.
     pub fn torque_nm(&self, km: f64, theta_e: f64, i_a: f64, i_b: f64) -> f64 {
         let (sa, sb) = self.shape_sums(theta_e);
@@ -162,6 +176,27 @@ impl FluxShape {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_linkage_is_the_integral_of_the_shape_sums() {
+        // S = −dψ/dθe (per unit Km/Nr): compare with a central difference.
+        let f = FluxSection {
+            phase_b_gain: 0.04,
+            harmonics: vec![
+                FluxHarmonic { order: 3, ratio: 0.015, phase_rad: 0.4 },
+                FluxHarmonic { order: 5, ratio: 0.006, phase_rad: -0.8 },
+            ],
+        };
+        let shape = FluxShape::new(&f);
+        assert_eq!(FluxShape::new(&FluxSection::default()).linkage(0.3), (0.3f64.cos(), 0.3f64.sin()));
+        for i in 0..50 {
+            let (te, h) = (-3.0 + 0.13 * f64::from(i), 1e-5);
+            let (p, m) = (shape.linkage(te + h), shape.linkage(te - h));
+            let (sa, sb) = shape.shape_sums(te);
+            assert!(((p.0 - m.0) / (2.0 * h) + sa).abs() < 1e-8, "a at {te}");
+            assert!(((p.1 - m.1) / (2.0 * h) + shape.b_gain() * sb).abs() < 1e-8, "b at {te}");
+        }
+    }
 
     #[test]
     fn a_pure_sine_is_the_patent_plant() {

@@ -62,7 +62,7 @@ impl Default for FluxOptions {
 
 /// The motor constants the estimate needs (from the base profile: a datasheet or a
 /// multimeter gives them).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Winding {
     /// Pole pairs `Nr`.
     pub pole_pairs: u16,
@@ -70,6 +70,28 @@ pub struct Winding {
     pub resistance_ohm: f64,
     /// Phase inductance in H.
     pub inductance_h: f64,
+    /// The flux linkage's shape when it is not a pure sine (the base profile's
+    /// `[motor.flux]`, docs/design.md#real-motors-flux-harmonics): the angle is then the one
+    /// whose linkage points where `λ − c` does ([`angle_on_shape`]), and the torque is
+    /// `τ = −Km·(i_a·S_a + (1 + g)·i_b·S_b)` rather than `Km·i_q`. `None`: the circle.
+    pub shape: Option<stepdamp_profile::flux::FluxShape>,
+}
+
+/// Iterations of [`angle_on_shape`]: each shrinks the error by the shape's angular
+/// distortion's slope (`Σ (n−1)·h_n·(1+…)` ≈ 5 % for the largest harmonics a profile may
+/// give), so 6 leave under 10⁻⁷ of the distortion.
+pub const SHAPE_ITERATIONS: usize = 6;
+
+/// The electrical angle whose linkage direction `arg ψ(θ)` is `a` (rad, in (−π, π]): the
+/// fixed point `θ ← θ + wrap(a − arg ψ(θ))` from `θ = a`, which converges for any shape
+/// whose harmonics turn the linkage by less than its own turning (`|d arg ψ/dθ − 1| < 1`).
+pub fn angle_on_shape(shape: &stepdamp_profile::flux::FluxShape, a: f64) -> f64 {
+    let mut th = a;
+    for _ in 0..SHAPE_ITERATIONS {
+        let (pa, pb) = shape.linkage(th);
+        th += wrap(a - pb.atan2(pa));
+    }
+    th
 }
 
 /// Where the resistance came from.
@@ -344,14 +366,22 @@ pub fn rotor_angle(
         }
         let (cx, cy) = centre_at(&centres, w_i, t);
         let (x, y) = (l.0 - cx, l.1 - cy);
-        let a = y.atan2(x);
+        let a = match &w.shape {
+            Some(shape) => angle_on_shape(shape, y.atan2(x)),
+            None => y.atan2(x),
+        };
         let th = match theta_e_rad.last() {
             None => a + TAU * ((nr * cmd0 - a) / TAU).round(),
             Some(&prev) => prev + wrap(a - prev),
         };
         theta_e_rad.push(th);
         if k >= still {
-            radius.push(x.hypot(y));
+            // The radius per unit of the shape's own at this angle (1 for the circle).
+            let unit = w.shape.as_ref().map_or(1.0, |sh| {
+                let (pa, pb) = sh.linkage(th);
+                pa.hypot(pb)
+            });
+            radius.push(x.hypot(y) / unit);
         }
     }
     // A rotor that follows keeps |δ| = |θe_cmd − θe| below π/2 (pull-out); a stalled one sits

@@ -30,12 +30,15 @@ use flux::{FluxError, FluxOptions, ResistanceSource, Standstill, Winding, pooled
 use log::SensorlessLog;
 use stepdamp_profile::Profile;
 
-/// The winding constants of a base profile.
+/// The winding constants of a base profile, with its flux shape when it has a
+/// `[motor.flux]` section.
 pub fn winding(base: &Profile) -> Winding {
+    let flux = &base.motor.flux;
     Winding {
         pole_pairs: base.motor.pole_pairs,
         resistance_ohm: base.motor.resistance_ohm,
         inductance_h: base.motor.inductance_h,
+        shape: (!flux.is_default()).then(|| stepdamp_profile::flux::FluxShape::new(flux)),
     }
 }
 
@@ -118,13 +121,18 @@ pub fn estimate(logs: &[SensorlessLog], w: &Winding, o: &FluxOptions) -> Result<
         log.i_b_a.iter_mut().for_each(|i| *i -= current_offset_a.1);
         let log = &log;
         let a = rotor_angle(log, w, resistance_ohm, o)?;
+        // The torque per Km: the Park transform's i_q for the circle; with a flux shape the
+        // model's own torque, so the current-proportional ripple is not fitted as detent.
         let i_q_a = a
             .theta_e_rad
             .iter()
             .zip(log.i_a_a.iter().zip(&log.i_b_a))
-            .map(|(&th, (&ia, &ib))| {
-                let (s, c) = th.sin_cos();
-                -ia * s + ib * c
+            .map(|(&th, (&ia, &ib))| match &w.shape {
+                Some(shape) => shape.torque_nm(1.0, th, ia, ib),
+                None => {
+                    let (s, c) = th.sin_cos();
+                    -ia * s + ib * c
+                }
             })
             .collect();
         angles.push(AngleReport {

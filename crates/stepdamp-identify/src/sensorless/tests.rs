@@ -99,6 +99,56 @@ fn patent_motor_harmonics_from_a_sensorless_plan() {
     assert!((id.motor.coulomb_friction_nm / m.motor.coulomb_friction_nm - 1.0).abs() < 0.1);
 }
 
+/// docs/profiles/patent-motor-real.toml: the detent plus a 1.2 % third and 0.4 % fifth flux
+/// harmonic and phase b 3 % strong, whose current-proportional ripple at the holding current
+/// is larger than the detent at order 4 (27 against 20 mN·m).
+fn real_motor() -> Profile {
+    Profile::from_file(std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../docs/profiles/patent-motor-real.toml"
+    )))
+    .unwrap()
+}
+
+#[test]
+fn the_angle_on_a_flux_shape_inverts_its_linkage_direction() {
+    let shape = stepdamp_profile::flux::FluxShape::new(&real_motor().motor.flux);
+    for i in 0..400 {
+        let th = -3.1 + 0.0155 * f64::from(i);
+        let (pa, pb) = shape.linkage(th);
+        let got = super::flux::angle_on_shape(&shape, pb.atan2(pa));
+        assert!((got - th).abs() < 1e-9, "{th}: {got}");
+    }
+}
+
+/// With the base's flux shape, the sensorless route measures the detent alone: the angle
+/// from the shape (a circle would be distorted by the harmonics), the torque from the shape
+/// (the current-proportional ripple is the model's, not fitted as detent). Without the
+/// shape the same logs give order 4 at about 52 mN·m (the detent plus the ripple at the
+/// holding current, biased) and order 2 at the wrong phase.
+#[test]
+fn with_the_bases_flux_shape_the_sensorless_route_finds_the_detent_alone() {
+    let m = real_motor();
+    let base = m.edited("base", |p| {
+        p.motor.detent.clear();
+        p.motor.resistance_ohm *= 1.1;
+    });
+    let base = base.unwrap();
+    let id = identify(&m, &base, 0.005, 1);
+    for h in &m.motor.detent {
+        let g = id.motor.detent.iter().find(|g| g.order == h.order).unwrap();
+        eprintln!(
+            "k={} A {:.5} vs {:.5}, φ {:+.4} vs {:+.4}",
+            h.order, g.amplitude_nm, h.amplitude_nm, g.phase_rad, h.phase_rad
+        );
+        // The tolerance: max(10 %, 1 mN·m) per harmonic; phases within 0.05 rad.
+        assert!((g.amplitude_nm - h.amplitude_nm).abs() <= (0.1 * h.amplitude_nm).max(1e-3), "order {}", h.order);
+        assert!((g.phase_rad - h.phase_rad).abs() < 0.05, "order {}", h.order);
+    }
+    assert_eq!(id.motor.flux, m.motor.flux, "the base's flux section is kept");
+    assert!((id.motor.inertia_kg_m2 / m.motor.inertia_kg_m2 - 1.0).abs() < 0.05, "J {}", id.motor.inertia_kg_m2);
+}
+
 /// The standstill `R` trim is not biased by the sensor noise that the current loop answers:
 /// an `R`–`L` winding held at 1.9 A by a PI loop acting on the noisy sample of the same
 /// period (no computation delay), 20 mA of noise. The sums of products `Σ v·i / Σ i·i`
