@@ -66,3 +66,6 @@ pub mod validation;
 
 #[cfg(all(test, feature = "simulate"))]
 mod tests;
+
+#[cfg(all(test, feature = "simulate"))]
+mod flux_tests;

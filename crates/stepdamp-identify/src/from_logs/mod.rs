@@ -272,7 +272,8 @@ pub fn identify(
     let name = o.name.clone().unwrap_or_else(|| format!("{}-{DEFAULT_NAME_SUFFIX}", base.name));
     let (result, model, current_offset_a) = match &logs {
         Logs::Encoder(l) => {
-            let f = fit(l, &o.encoder_fit_options(base))?;
+            let shaped = with_flux_torque(l, base);
+            let f = fit(shaped.as_deref().unwrap_or(l), &o.encoder_fit_options(base))?;
             let model = Model::from_fit(&f);
             let mut report = FitReport::new(&base.name, f);
             if o.feed_forward_on {
@@ -296,3 +297,34 @@ pub fn identify(
 
 #[cfg(test)]
 mod tests;
+
+/// Encoder logs of a motor whose base has a `[motor.flux]` section, with each `i_q` (and
+/// `iq_cmd`) replaced by the torque per `Km` the flux shape gives at the encoder angle with
+/// `i_d = 0` (the servo runs of the plan hold it there: docs/files.md#plan-csv), so that the
+/// fit's effort `Km·i_q` is the motor's torque and the ripple that grows with `i_q` is not
+/// fitted as detent (docs/design.md#real-motors-flux-harmonics). `None` without the section.
+fn with_flux_torque(logs: &[crate::log::RunLog], base: &Profile) -> Option<Vec<crate::log::RunLog>> {
+    if base.motor.flux.is_default() {
+        return None;
+    }
+    let shape = stepdamp_profile::flux::FluxShape::new(&base.motor.flux);
+    let nr = f64::from(base.motor.pole_pairs);
+    let torque = |th: &[f64], iq: &[f64]| -> Vec<f64> {
+        th.iter()
+            .zip(iq)
+            .map(|(&t, &i)| {
+                let (s, c) = (nr * t).sin_cos();
+                shape.torque_nm(1.0, nr * t, -i * s, i * c)
+            })
+            .collect()
+    };
+    Some(
+        logs.iter()
+            .map(|l| crate::log::RunLog {
+                i_q_a: torque(&l.theta_fb_rad, &l.i_q_a),
+                iq_cmd_a: l.iq_cmd_a.as_ref().map(|c| torque(&l.theta_fb_rad, c)),
+                ..l.clone()
+            })
+            .collect(),
+    )
+}
