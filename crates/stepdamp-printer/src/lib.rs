@@ -22,4 +22,6 @@ pub use head::{HeadError, HeadModel};
 pub use printer::{AccelModel, PrinterError, SimulatedPrinter, Trace};
 
 #[cfg(test)]
+mod end_to_end;
+#[cfg(test)]
 mod tests;

@@ -20,7 +20,7 @@ fn m973(speed: f64, revs: f64, h: u32, (mag, pha): (f64, f64)) -> Gcode {
 }
 
 /// The one capture in `text`, with its G-code set.
-fn read_one(text: &str, g: Gcode) -> AccelCapture {
+pub(crate) fn read_one(text: &str, g: Gcode) -> AccelCapture {
     let mut v = read_captures(text.as_bytes(), "sim").unwrap();
     assert_eq!(v.len(), 1);
     v.remove(0).with_gcode(g)
