@@ -19,6 +19,7 @@ macro_rules! outln {
     };
 }
 
+mod accel;
 mod common;
 mod export;
 mod identify;
@@ -67,6 +68,9 @@ enum Command {
     Import(export::ImportArgs),
     /// Tolerance study: draw motor variants, sweep their resonances, report the spread.
     Study(study::StudyArgs),
+    /// Prusa accelerometer captures (M973/M974): simulate a printer's.
+    #[command(subcommand)]
+    Accel(accel::AccelCommand),
 }
 
 fn main() {
@@ -101,6 +105,7 @@ fn main() {
         Command::Export(a) => export::run_export(a, &global),
         Command::Import(a) => export::run_import(a, &global),
         Command::Study(a) => study::run(a, &global),
+        Command::Accel(c) => accel::run(c, &global),
     };
     if let Err(e) = result {
         if common::is_stdout_closed(&e) {

@@ -201,8 +201,12 @@ impl SimulatedPrinter {
 
     /// The capture of `g` as printed (an `M973` needs a constant trial).
     pub fn capture(&self, g: &Gcode) -> Result<String, PrinterError> {
-        let t = self.simulate(g)?;
-        Ok(capture_text(&t.samples_m_s2, &t.annotations))
+        Ok(self.print(&self.simulate(g)?))
+    }
+
+    /// A simulated move's capture as the firmware prints it: its samples and annotations.
+    pub fn print(&self, t: &Trace) -> String {
+        capture_text(&t.samples_m_s2, &t.annotations)
     }
 
     /// The table in use for `g`'s direction with `M973`'s constant trial added to item `H`

@@ -160,3 +160,39 @@ fn with_accelerometer_noise_the_95_interval_covers_the_noise_free_response_in_mo
     println!("the 95 % disc covered the noise-free response in {covered} of {seeds} seeds");
     assert!(covered >= 16, "{covered} of {seeds}");
 }
+
+#[test]
+fn a_speed_sweep_capture_reads_back_and_its_annotations_match_the_plan() {
+    let p = SimulatedPrinter::new(real_motor(), CORE_ONE_CURRENT_A);
+    let g = Gcode::SpeedSweep { axis: Axis::Y, start_speed: 1.0, end_speed: 3.0, revs: -8.0 };
+    let text = p.capture_m974(Axis::Y, 1.0, 3.0, -8.0).unwrap();
+    let c = read_one(&text, g);
+    c.check_annotations().unwrap();
+    let t = g.planned_times().unwrap();
+    assert!((t.signal_end - t.signal_start - 4.0).abs() < 1e-12);
+    let span = c.samples.len() as f64 / c.annotations.sampling_freq_hz;
+    assert!(span > t.end_marker + 0.2 && span < t.end_marker + 0.22, "{span}");
+    // The head moves most during the sweep: its RMS there exceeds the settle block's.
+    let rms = |from: f64, to: f64| {
+        let fs = c.annotations.sampling_freq_hz;
+        let s = &c.samples[(from * fs) as usize..(to * fs) as usize];
+        (s.iter().map(|y| y * y).sum::<f64>() / s.len() as f64).sqrt()
+    };
+    assert!(rms(t.signal_start, t.signal_end) > 2.0 * rms(0.0, t.start_marker), "{}", rms(0.0, t.start_marker));
+}
+
+#[test]
+fn a_sweeping_trial_and_a_current_beyond_the_drive_are_refused_in_one_line() {
+    let p = SimulatedPrinter::new(real_motor(), CORE_ONE_CURRENT_A);
+    let g = Gcode::ParamSweep {
+        axis: Axis::X,
+        speed: 2.0,
+        revs: 4.0,
+        trial: TrialSweep { harmonic: 4, pha_start: 0.0, pha_end: 1.0, mag_start: 0.0, mag_end: 0.01 },
+    };
+    let e = p.capture(&g).unwrap_err().to_string();
+    assert!(e.contains("M973 X F2 R4 H4 A0 B1 C0 D0.01") && e.contains("a constant trial"), "{e}");
+    let p = SimulatedPrinter { run_current_a: 5.0, ..p };
+    let e = p.capture_m973(Axis::X, 2.0, 4.0, 4, (0.0, 0.0)).unwrap_err().to_string();
+    assert_eq!(e, "run_current_a = 5: must be in (0, 3] A (the profile's drive.current_limit_a)");
+}
