@@ -26,7 +26,7 @@ use rand_distr::{Distribution, StandardNormal};
 use std::f64::consts::TAU;
 use stepdamp_accel::capture::{MARKER_ACCEL_REV_S2, MARKER_SPEED_REV_S, MAX_HARMONIC, SETTLE_S};
 use stepdamp_accel::{AccelCapture, Annotations, Axis, CaptureError, Gcode, Reconstruction, TrialSweep};
-use stepdamp_export::prusa::{ITEMS, PrusaCorrection};
+use stepdamp_export::prusa::PrusaCorrection;
 use stepdamp_sim::{ClosedLoop, Compensation, Mode, Profile, SimOptions};
 
 /// Standard gravity (m/s²), the firmware's `2·9.80665/max` scale (`accelerometer_utils.cpp`).
@@ -212,7 +212,15 @@ impl SimulatedPrinter {
     /// The table in use for `g`'s direction with `M973`'s constant trial added to item `H`
     /// (the firmware adds the trial's shift to the table's, lut.cpp:138–140; here the two
     /// items are added as phasors, the same sum before the table's 2π/4096 rounding).
+    /// Refuses items whose table the firmware cannot compute.
     fn correction_for(&self, g: &Gcode) -> Result<PrusaCorrection, PrinterError> {
+        let c = self.with_trial(g)?;
+        c.check_replay("the table in use (with the trial)").map_err(|e| PrinterError::Sim(e.to_string()))?;
+        Ok(c)
+    }
+
+    /// [`Self::correction`] with `M973`'s constant trial added to item `H` of the table in use.
+    fn with_trial(&self, g: &Gcode) -> Result<PrusaCorrection, PrinterError> {
         let mut c = self.correction;
         let Gcode::ParamSweep { trial, .. } = *g else { return Ok(c) };
         let bad = |what, value: String, allowed: &str| PrinterError::Parameter { what, value, allowed: allowed.into() };
@@ -220,7 +228,7 @@ impl SimulatedPrinter {
             return Err(bad("M973 A/B/C/D", format!("{g}"), "a constant trial (A = B, C = D)"));
         };
         let h = trial.harmonic;
-        if !(1..=MAX_HARMONIC).contains(&h) || h as usize >= ITEMS {
+        if !(1..=MAX_HARMONIC).contains(&h) {
             return Err(bad("M973 H", h.to_string(), "1..=16"));
         }
         if !(mag.is_finite() && pha.is_finite() && (-1.0..=1.0).contains(&mag)) {
@@ -231,7 +239,6 @@ impl SimulatedPrinter {
         let (re, im) = (m0 * p0.cos() + mag * pha.cos(), m0 * p0.sin() + mag * pha.sin());
         s.mag[h as usize] = re.hypot(im) as f32;
         s.pha[h as usize] = im.atan2(re) as f32;
-        c.check_replay("the table with the trial").map_err(|e| PrinterError::Sim(e.to_string()))?;
         Ok(c)
     }
 

@@ -182,7 +182,7 @@ fn a_speed_sweep_capture_reads_back_and_its_annotations_match_the_plan() {
 }
 
 #[test]
-fn a_sweeping_trial_and_a_current_beyond_the_drive_are_refused_in_one_line() {
+fn a_sweeping_trial_an_overflowing_table_and_a_current_beyond_the_drive_are_refused() {
     let p = SimulatedPrinter::new(real_motor(), CORE_ONE_CURRENT_A);
     let g = Gcode::ParamSweep {
         axis: Axis::X,
@@ -192,6 +192,10 @@ fn a_sweeping_trial_and_a_current_beyond_the_drive_are_refused_in_one_line() {
     };
     let e = p.capture(&g).unwrap_err().to_string();
     assert!(e.contains("M973 X F2 R4 H4 A0 B1 C0 D0.01") && e.contains("a constant trial"), "{e}");
+    let mut big = p.clone();
+    big.correction.forward.mag[1] = 1e6;
+    let e = big.capture_m974(Axis::X, 1.0, 2.0, -2.0).unwrap_err().to_string();
+    assert!(e.contains("overflow"), "{e}");
     let p = SimulatedPrinter { run_current_a: 5.0, ..p };
     let e = p.capture_m973(Axis::X, 2.0, 4.0, 4, (0.0, 0.0)).unwrap_err().to_string();
     assert_eq!(e, "run_current_a = 5: must be in (0, 3] A (the profile's drive.current_limit_a)");
