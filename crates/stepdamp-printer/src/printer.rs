@@ -8,9 +8,9 @@
 //! in **open loop** at the run current, replaying the Prusa table of the direction in use
 //! (`R > 0`: the backward table, the phase running down), with `M973`'s constant trial added
 //! to harmonic `H`'s item. Left out of the firmware's move: the planner's own step timing
-//! (the simulator's command advances once per 50 µs control period), input shaping, and the
-//! settle blocks' 0.01 mm triangles are planned as the firmware plans them but at a belt
-//! travel of `2π·r` per revolution.
+//! (the simulator's command advances once per control period, 50 µs at 20 kHz) and input
+//! shaping. The settle blocks' 0.01 mm triangles are converted at the head's belt travel,
+//! `2π·r` per revolution.
 //!
 //! **The head** is [`HeadModel`]'s: rigid coupling for the motor (`m·r²` added to `J`), the
 //! belt mode as a low-pass from `r·α` to the head. **The accelerometer** samples the head's
