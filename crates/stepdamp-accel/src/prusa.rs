@@ -174,6 +174,13 @@ pub fn read_captures<R: Read>(input: R, file: &str) -> Result<Vec<AccelCapture>,
     Ok(r.done)
 }
 
+/// The calibration G-code in `text` (`M973 X F2 R10 H4 A0 B0 C0 D0`, `M974 Y A0.5 B4 R-6`;
+/// a line number, checksum and comment are allowed), parsed as the reader parses an echoed
+/// command: `None` unless the firmware (≥ 6.3.1) would run it.
+pub fn parse_gcode(text: &str) -> Option<Gcode> {
+    host::gcode(text)
+}
+
 /// [`read_captures`] of the file at `path`.
 pub fn read_file(path: &std::path::Path) -> Result<Vec<AccelCapture>, ReadError> {
     let name = path.display().to_string();

@@ -68,7 +68,7 @@ enum Command {
     Import(export::ImportArgs),
     /// Tolerance study: draw motor variants, sweep their resonances, report the spread.
     Study(study::StudyArgs),
-    /// The accelerometer route on a Prusa printer: refine its table from recorded captures.
+    /// The accelerometer route on a Prusa printer: simulate a capture, refine the table from recorded ones.
     #[command(subcommand)]
     Accel(accel::AccelCommand),
 }

@@ -1,24 +1,15 @@
-//! `stepdamp accel`: the accelerometer route on a Prusa printer (docs/accelerometer.md).
-//! Translation only: the captures are read, grouped and refined by `stepdamp-accel`, the
-//! table written by `stepdamp-export`'s Prusa writer.
+//! `stepdamp accel refine` (docs/accelerometer.md#refining-from-captures). Translation only:
+//! the captures are read, grouped and refined by `stepdamp-accel`, the table written by
+//! `stepdamp-export`'s Prusa writer.
 
-use crate::Global;
 use crate::common::{load_motor, write_atomic};
 use crate::export::CurrentArgs;
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use std::path::PathBuf;
 use stepdamp_accel::refine::{InUse, RefineOptions, Refined, TABLE_ITEMS, Timing, refine};
 use stepdamp_accel::{AccelCapture, Axis};
 use stepdamp_export::escape;
 use stepdamp_export::prusa::{self, Firmware, Fitted, PrusaCorrection, Spectrum, gcode};
-
-/// `stepdamp accel …`.
-#[derive(clap::Subcommand, Debug)]
-pub enum AccelCommand {
-    /// One influence step from recorded M973 captures (`identify plan --accel` lists them):
-    /// the Prusa table (M971 lines, firmware >= 6.3.1) that cancels what they measured.
-    Refine(RefineArgs),
-}
 
 /// How the time of each capture's first sample is found.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -53,8 +44,10 @@ pub struct RefineArgs {
     /// Whole electrical periods per lock-in block.
     #[arg(long, default_value_t = 20)]
     periods_per_block: u32,
-    /// How the first sample's time is found.
-    #[arg(long, value_enum, default_value_t = TimingArg::Markers)]
+    /// How the first sample's time is found: planned (the firmware's own 0; a start latency
+    /// that repeats from capture to capture cancels out of the step) or markers (estimated
+    /// from each capture's marker moves; it fails where the head filters the markers away).
+    #[arg(long, value_enum, default_value_t = TimingArg::Planned)]
     timing: TimingArg,
     /// The run current the captures were recorded at (the table is valid there).
     #[command(flatten)]
@@ -64,14 +57,8 @@ pub struct RefineArgs {
     out: PathBuf,
 }
 
-/// Runs `stepdamp accel`.
-pub fn run(c: AccelCommand, _g: &Global) -> Result<()> {
-    match c {
-        AccelCommand::Refine(a) => run_refine(a),
-    }
-}
-
-fn run_refine(a: RefineArgs) -> Result<()> {
+/// Runs `stepdamp accel refine`.
+pub(super) fn run_refine(a: RefineArgs) -> Result<()> {
     let (axis, letter) = match a.axis.as_str() {
         "X" | "x" => (Axis::X, 'X'),
         "Y" | "y" => (Axis::Y, 'Y'),
@@ -83,7 +70,7 @@ fn run_refine(a: RefineArgs) -> Result<()> {
     let run = a.current.run_current()?;
     let motor = load_motor(&a.motor)?;
     let captures = read_captures(&a.logs, axis)?;
-    let old = in_use(&a.in_use, letter)?;
+    let old = super::table_in_use(&a.in_use, letter)?;
     let o = RefineOptions {
         periods_per_rev: u32::from(motor.motor.pole_pairs),
         mm_per_rev: a.mm_per_rev,
@@ -96,6 +83,16 @@ fn run_refine(a: RefineArgs) -> Result<()> {
     };
     let spectra = |s: &Spectrum| std::array::from_fn(|n| (f64::from(s.mag[n]), f64::from(s.pha[n])));
     let old_items = InUse { forward: spectra(&old.forward), backward: spectra(&old.backward) };
+    outln!(
+        "{} captures; first-sample time {}; belt {} mm/rev; {} electrical periods per revolution",
+        captures.len(),
+        match a.timing {
+            TimingArg::Planned => "planned (0, as the firmware assumes)",
+            TimingArg::Markers => "from each capture's markers",
+        },
+        a.mm_per_rev,
+        o.periods_per_rev
+    );
     let refined = refine(&captures, &o, &old_items)?;
     let mut new = old;
     for r in &refined {
@@ -129,25 +126,6 @@ fn read_captures(logs: &[PathBuf], axis: Axis) -> Result<Vec<AccelCapture>> {
         bail!("no captures in the logs given");
     }
     Ok(all)
-}
-
-/// The table in use: `none`, or the M971 lines of a file for `axis`.
-fn in_use(arg: &str, axis: char) -> Result<PrusaCorrection> {
-    if arg == "none" {
-        let zero = Spectrum::default();
-        return Ok(PrusaCorrection { forward: zero, backward: zero, firmware: Firmware::V6_3_1 });
-    }
-    let path = PathBuf::from(arg);
-    let bytes = prusa::read::read_capped(&path)?;
-    let text = String::from_utf8(bytes).with_context(|| format!("{}: not UTF-8 text", escape::line(arg)))?;
-    let (c, _) = prusa::parse_text(&text, Some(axis), arg)?;
-    if c.firmware != Firmware::V6_3_1 {
-        bail!(
-            "{}: an M973 (6.2) table; the captures need firmware >= 6.3.1, whose table is M971 lines",
-            escape::line(arg)
-        );
-    }
-    Ok(c)
 }
 
 /// The G-code of `c`, refused when its table would not fit the firmware's int8 shifts.
