@@ -117,11 +117,14 @@ pub enum Compensation {
     #[default]
     Off,
     /// The patent's law: `(1/Km) Σ A sin(kθe + φ)` at `θ_cmd` in open loop (eq. 8), at
-    /// `θ_fb` in servo mode with `Fs·sgn(ω_cmd)` (eq. 15).
+    /// `θ_fb` in servo mode with `Fs·sgn(ω_cmd)` (eq. 15); with a ripple that grows with
+    /// the current, at the law's operating point ([`crate::ripple`]).
     Patent,
     /// Open loop: the series at the rotor angle estimated by the load-angle observer
     /// ([`crate::observer`]), divided by `cos δ̂` (the q axis of `θc` is `δ̂` off the
-    /// rotor's). Servo mode: the same as `Patent` (the encoder is the best angle there).
+    /// rotor's); with a ripple that grows with the current, at the rotor-frame currents of
+    /// `δ̂` ([`crate::ripple`]). Servo mode: the same as `Patent` (the encoder is the best
+    /// angle there).
     Estimated,
     /// Open loop only: the holding-current vector rotated by `Δ(θ_cmd) = (1/(Km·I_hold))
     /// Σ A sin(kθe + φ)` at constant magnitude, as Prusa's phase stepping and Trinamic

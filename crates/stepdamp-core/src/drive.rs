@@ -162,10 +162,11 @@ pub fn step(cfg: &Config, st: &mut State, m: &Measurement) -> Output {
         Mode::OpenLoop => {
             // The operating point of the estimated law: the holding current on d of θc.
             let op = Dq { d: cfg.holding_current_a, q: 0.0 };
-            let comp_a = compensation_current(cfg, st, i_ab, sin, cos, op);
+            let at = rotor_angle(cfg, st, i_ab, sin, cos);
+            let comp_a = compensation_current(cfg, st, &at, op);
             open_loop_command(cfg, st, theta_cmd, comp_a, sin, cos)
         }
-        Mode::Servo => servo_law(cfg, st, theta_cmd, theta_fb, i_ab, sin, cos),
+        Mode::Servo => servo_law(cfg, st, theta_cmd, theta_fb, sin, cos),
     };
     let (v_ab, modulated) = current_loop(cfg, st, i_dq_cmd, i_dq, sin, cos);
 
@@ -201,16 +202,33 @@ fn accept_sample(cfg: &Config, st: &mut State, m: &Measurement) -> Ab {
     }
 }
 
-/// Stage 2, the compensation current in A (q axis of the control frame, before the law
-/// limits it), evaluated where the compensation angle is: θ_cmd (patent, open loop), θ_fb
-/// (servo), or the observer's rotor angle θc − δ̂ (estimated, open loop; this also runs
-/// the observer). `sin`, `cos` are those of the control angle; `op` is the law's operating
-/// point in the control frame (open loop `(I_hold, 0)`, servo `(0, i_q,ctrl)`), used only
-/// by a model with current parts ([`crate::ripple`]).
+/// Where the compensation is evaluated ([`rotor_angle`]): `(sin, cos)` of the angle, and
+/// the load angle `δ̂` it is off the control frame (0 unless observed).
+#[derive(Clone, Copy)]
+struct CompensationAngle {
+    sin: f32,
+    cos: f32,
+    sin_delta: f32,
+    cos_delta: f32,
+    /// `Km/K̂m` (1 unless observed).
+    km_gain: f32,
+    observed: bool,
+}
+
+impl CompensationAngle {
+    /// The control angle itself (θ_cmd in open loop without the observer, θ_fb in servo).
+    #[inline(always)]
+    fn control(sin: f32, cos: f32) -> Self {
+        CompensationAngle { sin, cos, sin_delta: 0.0, cos_delta: 1.0, km_gain: 1.0, observed: false }
+    }
+}
+
+/// Stage 2a in open loop, where the compensation angle is: θ_cmd (patent), or the
+/// observer's rotor angle θc − δ̂ (estimated; this runs the observer). `sin`, `cos` are
+/// those of θ_cmd.
 #[inline(always)]
-fn compensation_current(cfg: &Config, st: &mut State, i_ab: Ab, sin: f32, cos: f32, op: Dq) -> f32 {
-    let omega_e = st.speed_cmd_rad_s * f32::from(cfg.pole_pairs);
-    let (cs, cc, km_gain, sd, cd) = match &cfg.observer {
+fn rotor_angle(cfg: &Config, st: &mut State, i_ab: Ab, sin: f32, cos: f32) -> CompensationAngle {
+    match &cfg.observer {
         Some(obs) => {
             let input = ObserverInput {
                 current: i_ab,
@@ -221,11 +239,28 @@ fn compensation_current(cfg: &Config, st: &mut State, i_ab: Ab, sin: f32, cos: f
             };
             let delta = obs.update(&mut st.observer, &input);
             let (sd, cd) = sin_cos_rad(delta);
-            // Correct the configured Km by the back-EMF's measure of it.
-            (sin * cd - cos * sd, cos * cd + sin * sd, obs.km_correction(&st.observer), sd, cd)
+            CompensationAngle {
+                sin: sin * cd - cos * sd,
+                cos: cos * cd + sin * sd,
+                sin_delta: sd,
+                cos_delta: cd,
+                // Correct the configured Km by the back-EMF's measure of it.
+                km_gain: obs.km_correction(&st.observer),
+                observed: true,
+            }
         }
-        None => (sin, cos, 1.0, 0.0, 1.0),
-    };
+        None => CompensationAngle::control(sin, cos),
+    }
+}
+
+/// Stage 2b, the compensation current in A (q axis of the control frame, before the law
+/// limits it) at `at`; `op` is the law's operating point in the control frame (open loop
+/// `(I_hold, 0)`, servo `(0, i_q,ctrl)`), used only by a model with current parts
+/// ([`crate::ripple`]).
+#[inline(always)]
+fn compensation_current(cfg: &Config, st: &State, at: &CompensationAngle, op: Dq) -> f32 {
+    let omega_e = st.speed_cmd_rad_s * f32::from(cfg.pole_pairs);
+    let (cs, cc, sd, cd) = (at.sin, at.cos, at.sin_delta, at.cos_delta);
     // The closed current loop is `1/(1 + (s/ωc)·e^{s·Td})`: command the compensation
     // through its inverse along the commanded electrical speed,
     // `S + (1/ωc)·ωe·(S' + Td·ωe·S'')`, so the current itself lands on the detent at every
@@ -236,7 +271,7 @@ fn compensation_current(cfg: &Config, st: &mut State, i_ab: Ab, sin: f32, cos: f
     };
     if !cfg.ripple.current_dependent {
         // q of θc is δ̂ off the rotor's q axis: divide by cos δ̂ (bounded).
-        let gain = if cfg.observer.is_some() { km_gain / crate::at_least(cd, crate::ripple::MIN_DIVISOR) } else { 1.0 };
+        let gain = if at.observed { at.km_gain / crate::at_least(cd, crate::ripple::MIN_DIVISOR) } else { 1.0 };
         let (series, slope, curv) = cfg.ripple.fixed.eval_with_derivatives(cs, cc);
         return gain * lead(series, slope, curv);
     }
@@ -244,7 +279,7 @@ fn compensation_current(cfg: &Config, st: &mut State, i_ab: Ab, sin: f32, cos: f
     // torque per ampere the compensation current itself makes there (docs/design.md#real-motors-flux-harmonics).
     let (i_d, i_q) = (op.d * cd - op.q * sd, op.d * sd + op.q * cd);
     let v = cfg.ripple.eval(cs, cc, i_d, i_q);
-    km_gain * lead(v.current_a, v.slope, v.curvature) / crate::ripple::divisor(&v, sd, cd)
+    at.km_gain * lead(v.current_a, v.slope, v.curvature) / crate::ripple::divisor(&v, sd, cd)
 }
 
 /// Stage 3 in open loop: the d/q current commands in A of the compensation law (holding
@@ -323,18 +358,11 @@ fn sensor_fault(cfg: &Config, st: &mut State, theta_cmd: Position, theta_fb: Pos
 /// `i_q = (1/Km)[Kpv ω_err + Kpp θ_err + Kip ∫θ_err + Σ A sin(kθe_fb+φ) + Fs sgn(ω_cmd)]`,
 /// clamped to the current limit; the position integral stops while the clamp pushes the
 /// same way (anti-windup). With current parts in the ripple model the compensation is
-/// evaluated at `i_q,ctrl`, the feedback and friction terms of this period, and divided by
-/// the torque per ampere at `θ_fb` ([`crate::ripple`]). `sin`, `cos` are those of `θ_fb`.
+/// evaluated at `i_q,ctrl`, the feedback and friction terms of this period (bounded to the
+/// limit), and divided by the torque per ampere at `θ_fb` ([`crate::ripple`]). `sin`, `cos`
+/// are those of `θ_fb`.
 #[inline]
-fn servo_law(
-    cfg: &Config,
-    st: &mut State,
-    theta_cmd: Position,
-    theta_fb: Position,
-    i_ab: Ab,
-    sin: f32,
-    cos: f32,
-) -> Dq {
+fn servo_law(cfg: &Config, st: &mut State, theta_cmd: Position, theta_fb: Position, sin: f32, cos: f32) -> Dq {
     let theta_err = theta_cmd.wrapping_diff(theta_fb) as f32 * cfg.rad_per_unit;
     let omega_err = st.speed_cmd_rad_s - st.encoder.velocity_rad_s;
     let friction = if st.speed_cmd_rad_s > 0.0 {
@@ -347,9 +375,8 @@ fn servo_law(
     let integral_next = st.position_integral_rad_s + theta_err * cfg.period_s;
     let feedback = cfg.kpv_a * omega_err + cfg.kpp_a * theta_err + cfg.kip_a * integral_next;
     let lim = cfg.current_limit_a;
-    // The feedback's own current, bounded: the operating point of the compensation.
     let op = Dq { d: 0.0, q: crate::bound(feedback + friction, -lim, lim) };
-    let comp_a = compensation_current(cfg, st, i_ab, sin, cos, op);
+    let comp_a = compensation_current(cfg, st, &CompensationAngle::control(sin, cos), op);
     let iq = feedback + comp_a + friction;
     let clamped = crate::bound(iq, -lim, lim);
     if clamped == iq || theta_err * iq < 0.0 {

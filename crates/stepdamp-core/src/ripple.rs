@@ -149,8 +149,9 @@ impl RippleModel {
 
     /// `S`, its derivatives in `θe` and `cd`, `cq` at `(sin θe, cos θe)` and rotor-frame
     /// currents `i_d`, `i_q` (A), in one pass over the orders (one rotation per order, as
-    /// [`HarmonicSeries::eval_with_derivatives`]).
-    #[inline]
+    /// [`HarmonicSeries::eval_with_derivatives`]). Kept out of line: only a motor with
+    /// current parts calls it, and the step inlines its two callers (open loop, servo).
+    #[inline(never)]
     pub fn eval(&self, s1: f32, c1: f32, i_d: f32, i_q: f32) -> RippleValue {
         let (f, d, q) = (&self.fixed, &self.per_amp_d, &self.per_amp_q);
         let orders = f.max_order.max(d.max_order).max(q.max_order).min(MAX_HARMONIC_ORDER);
