@@ -207,14 +207,9 @@ pub const CURRENT_RIPPLE_NM_PER_A: Limit = closed(
     "the ripple per ampere is a fraction of the torque constant, which is below 50 N·m/A",
 );
 
-/// Phase of one harmonic of the ripple per ampere ([`crate::ripple::CurrentRipple`]).
-pub const CURRENT_RIPPLE_PHASE_RAD: Limit = closed(
-    "current_ripple.phase_rad",
-    -core::f64::consts::TAU,
-    core::f64::consts::TAU,
-    "rad",
-    "a phase is in radians; beyond ±2π it is almost surely in degrees",
-);
+/// Phase of one harmonic of the ripple per ampere ([`crate::ripple::CurrentRipple`]): the
+/// range of [`DETENT_PHASE_RAD`] under its own key.
+pub const CURRENT_RIPPLE_PHASE_RAD: Limit = Limit { key: "current_ripple.phase_rad", ..DETENT_PHASE_RAD };
 
 /// Detent harmonic order `k`.
 pub const DETENT_ORDER: Limit = closed(
