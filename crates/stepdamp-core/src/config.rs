@@ -8,6 +8,7 @@ use crate::limits::{self, Limit, Num32};
 use crate::modulator::Topology;
 use crate::observer::{LoadAngleObserver, ObserverSettings};
 use crate::pi::Pi;
+use crate::ripple::{CurrentRipple, RippleModel};
 
 /// What the controller knows of the motor (SI units).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -24,6 +25,10 @@ pub struct MotorModel<'a> {
     pub coulomb_friction_nm: f32,
     /// Detent harmonics, torque on the rotor `−Σ A sin(k Nr θ + φ)`.
     pub detent: &'a [Harmonic],
+    /// The ripple that grows with the current ([`CurrentRipple::NONE`] for a pure-sine
+    /// motor with equal phases): fed forward at the operating point of the law
+    /// ([`crate::ripple`]).
+    pub current_ripple: CurrentRipple<'a>,
 }
 
 /// Power stage and current loop settings.
@@ -112,11 +117,14 @@ pub enum Compensation {
     #[default]
     Off,
     /// The patent's law: `(1/Km) Σ A sin(kθe + φ)` at `θ_cmd` in open loop (eq. 8), at
-    /// `θ_fb` in servo mode with `Fs·sgn(ω_cmd)` (eq. 15).
+    /// `θ_fb` in servo mode with `Fs·sgn(ω_cmd)` (eq. 15); with a ripple that grows with
+    /// the current, at the law's operating point ([`crate::ripple`]).
     Patent,
     /// Open loop: the series at the rotor angle estimated by the load-angle observer
     /// ([`crate::observer`]), divided by `cos δ̂` (the q axis of `θc` is `δ̂` off the
-    /// rotor's). Servo mode: the same as `Patent` (the encoder is the best angle there).
+    /// rotor's); with a ripple that grows with the current, at the rotor-frame currents of
+    /// `δ̂` ([`crate::ripple`]). Servo mode: the same as `Patent` (the encoder is the best
+    /// angle there).
     Estimated,
     /// Open loop only: the holding-current vector rotated by `Δ(θ_cmd) = (1/(Km·I_hold))
     /// Σ A sin(kθe + φ)` at constant magnitude, as Prusa's phase stepping and Trinamic
@@ -158,6 +166,7 @@ impl Params<'static> {
                 inductance_h: 2.5e-3,
                 coulomb_friction_nm: 0.01,
                 detent: &PATENT_MOTOR_DETENT,
+                current_ripple: CurrentRipple::NONE,
             },
             drive: DriveSettings {
                 bus_voltage_v: 48.0,
@@ -285,8 +294,9 @@ pub struct Config {
     pub(crate) rad_per_unit: f32,
     pub(crate) period_s: f32,
     pub(crate) encoder: Encoder,
-    /// Detent compensation current in A (zero series when compensation is off).
-    pub(crate) compensation: HarmonicSeries,
+    /// The ripple the compensation cancels, arranged for the law (all zero when
+    /// compensation is off).
+    pub(crate) ripple: RippleModel,
     /// Load-angle observer (open loop with `Compensation::Estimated` only).
     pub(crate) observer: Option<LoadAngleObserver>,
     /// Lead of the compensation current: the closed current loop with a delay `Td` inside
@@ -372,7 +382,7 @@ struct Checked {
     kpp: f32,
     kip: f32,
     vf: f32,
-    series: HarmonicSeries,
+    ripple: RippleModel,
 }
 
 impl Checked {
@@ -435,7 +445,8 @@ impl Checked {
                 reason: Reason::Other("angle and table compensation are open-loop laws (use patent in servo mode)"),
             });
         }
-        Ok(Checked { km, r, l, fs, vdc, pwm, limit, hold, bw, cpr, kpv, kpp, kip, vf, series })
+        let ripple = RippleModel::new(series, &m.current_ripple, 1.0 / km, hold, p.mode, p.compensation)?;
+        Ok(Checked { km, r, l, fs, vdc, pwm, limit, hold, bw, cpr, kpv, kpp, kip, vf, ripple })
     }
 }
 
@@ -466,7 +477,7 @@ impl Config {
     }
 
     fn build(p: &Params<'_>) -> Result<Config, ConfigError> {
-        let Checked { km, r, l, fs, vdc, pwm, limit, hold, bw, cpr, kpv, kpp, kip, vf, series } = Checked::new(p)?;
+        let Checked { km, r, l, fs, vdc, pwm, limit, hold, bw, cpr, kpv, kpp, kip, vf, ripple } = Checked::new(p)?;
         let (m, d) = (&p.motor, &p.drive);
         let ts = 1.0 / pwm;
         let on = p.compensation != Compensation::Off;
@@ -493,7 +504,7 @@ impl Config {
                 as f32,
             period_s: ts,
             encoder: Encoder::new(cpr, m.pole_pairs, ts, vf),
-            compensation: if on { series } else { HarmonicSeries::default() },
+            ripple,
             // Only where the compensation angle is the rotor's own (servo, or the estimate):
             // the patent's open-loop law evaluates at θ_cmd, which the rotor lags anyway.
             compensation_lead_s: if p.mode == Mode::Servo || estimated {
@@ -551,8 +562,10 @@ impl Config {
         finite("servo.position_nm_per_rad", s.position_nm_per_rad, self.kpp_a)?;
         finite("servo.position_integral_nm_per_rad_s", s.position_integral_nm_per_rad_s, self.kip_a)?;
         finite("motor.coulomb_friction_nm", m.coulomb_friction_nm, self.friction_a)?;
-        if !self.compensation.is_finite() {
-            let largest = m.detent.iter().map(|h| h.amplitude_nm).fold(0.0, f32::max);
+        if !self.ripple.is_finite() {
+            let r = &m.current_ripple;
+            let all = m.detent.iter().chain(r.per_amp_d).chain(r.per_amp_q);
+            let largest = all.map(|h| h.amplitude_nm).fold(0.0, f32::max);
             return Err(ConfigError::Invalid {
                 field: "detent.amplitude_nm",
                 value: largest,

@@ -7,6 +7,7 @@
 //! `4·k_max` multiplies; error grows like `k_max·ε_f32·Σ|A|` (< 10⁻⁵·Σ|A| for `k_max ≤ 32`).
 
 use crate::config::ConfigError;
+use crate::limits::Limit;
 
 /// Highest harmonic order the fixed-size table holds.
 pub const MAX_HARMONIC_ORDER: usize = 32;
@@ -25,9 +26,9 @@ pub struct Harmonic {
 /// A harmonic series in sin/cos form, scaled at construction.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct HarmonicSeries {
-    sin_coef: [f32; MAX_HARMONIC_ORDER],
-    cos_coef: [f32; MAX_HARMONIC_ORDER],
-    max_order: usize,
+    pub(crate) sin_coef: [f32; MAX_HARMONIC_ORDER],
+    pub(crate) cos_coef: [f32; MAX_HARMONIC_ORDER],
+    pub(crate) max_order: usize,
 }
 
 impl Default for HarmonicSeries {
@@ -41,14 +42,25 @@ impl HarmonicSeries {
     /// `1..=MAX_HARMONIC_ORDER`, repeated orders, negative or non-finite amplitudes and
     /// non-finite phases.
     pub fn new(harmonics: &[Harmonic], scale: f32) -> Result<Self, ConfigError> {
+        Self::within_limits(harmonics, scale, &crate::limits::DETENT_AMPLITUDE_NM, &crate::limits::DETENT_PHASE_RAD)
+    }
+
+    /// [`HarmonicSeries::new`] with the amplitudes and phases checked against `amplitude`
+    /// and `phase` (which name the key in the error) instead of the detent's limits.
+    pub fn within_limits(
+        harmonics: &[Harmonic],
+        scale: f32,
+        amplitude: &'static Limit,
+        phase: &'static Limit,
+    ) -> Result<Self, ConfigError> {
         let mut s = HarmonicSeries::default();
         for h in harmonics {
             let k = usize::from(h.order);
             if k == 0 || k > MAX_HARMONIC_ORDER {
                 return Err(ConfigError::HarmonicOrder { order: h.order });
             }
-            crate::config::within(&crate::limits::DETENT_AMPLITUDE_NM, h.amplitude_nm)?;
-            crate::config::within(&crate::limits::DETENT_PHASE_RAD, h.phase_rad)?;
+            crate::config::within(amplitude, h.amplitude_nm)?;
+            crate::config::within(phase, h.phase_rad)?;
             if harmonics.iter().filter(|o| o.order == h.order).count() > 1 {
                 return Err(ConfigError::DuplicateHarmonic { order: h.order });
             }
@@ -62,6 +74,21 @@ impl HarmonicSeries {
     /// All coefficients finite (a scale of `1/Km` can overflow them).
     pub fn is_finite(&self) -> bool {
         self.sin_coef.iter().chain(self.cos_coef.iter()).all(|c| c.is_finite())
+    }
+
+    /// `self + weight·other`, coefficient by coefficient (the series of the sum). An empty
+    /// `other` leaves `self` bit for bit.
+    pub fn plus_scaled(&self, other: &HarmonicSeries, weight: f32) -> HarmonicSeries {
+        if other.max_order == 0 {
+            return *self;
+        }
+        let mut s = *self;
+        for k in 0..MAX_HARMONIC_ORDER {
+            s.sin_coef[k] += weight * other.sin_coef[k];
+            s.cos_coef[k] += weight * other.cos_coef[k];
+        }
+        s.max_order = self.max_order.max(other.max_order);
+        s
     }
 
     /// Highest order present (0 for an empty series).

@@ -158,8 +158,16 @@ pub fn step(cfg: &Config, st: &mut State, m: &Measurement) -> Output {
     // The low 32 bits are the electrical angle as a fraction of a turn.
     let (sin, cos) = sin_cos_turn(theta_ctl.0 as u32);
     let i_dq = park(i_ab, sin, cos);
-    let comp_a = compensation_current(cfg, st, i_ab, sin, cos);
-    let i_dq_cmd = current_command(cfg, st, theta_cmd, theta_fb, comp_a, sin, cos);
+    let i_dq_cmd = match cfg.mode {
+        Mode::OpenLoop => {
+            // The operating point of the estimated law: the holding current on d of θc.
+            let op = Dq { d: cfg.holding_current_a, q: 0.0 };
+            let at = rotor_angle(cfg, st, i_ab, sin, cos);
+            let comp_a = compensation_current(cfg, st, &at, op);
+            open_loop_command(cfg, st, theta_cmd, comp_a, sin, cos)
+        }
+        Mode::Servo => servo_law(cfg, st, theta_cmd, theta_fb, sin, cos),
+    };
     let (v_ab, modulated) = current_loop(cfg, st, i_dq_cmd, i_dq, sin, cos);
 
     st.command.advance();
@@ -194,14 +202,33 @@ fn accept_sample(cfg: &Config, st: &mut State, m: &Measurement) -> Ab {
     }
 }
 
-/// Stage 2, the compensation current in A (q axis, before the law limits it), evaluated
-/// where the compensation angle is: θ_cmd (patent, open loop), θ_fb (servo), or the
-/// observer's rotor angle θc − δ̂ (estimated, open loop; this also runs the observer).
-/// `sin`, `cos` are those of the control angle.
+/// Where the compensation is evaluated ([`rotor_angle`]): `(sin, cos)` of the angle, and
+/// the load angle `δ̂` it is off the control frame (0 unless observed).
+#[derive(Clone, Copy)]
+struct CompensationAngle {
+    sin: f32,
+    cos: f32,
+    sin_delta: f32,
+    cos_delta: f32,
+    /// `Km/K̂m` (1 unless observed).
+    km_gain: f32,
+    observed: bool,
+}
+
+impl CompensationAngle {
+    /// The control angle itself (θ_cmd in open loop without the observer, θ_fb in servo).
+    #[inline(always)]
+    fn control(sin: f32, cos: f32) -> Self {
+        CompensationAngle { sin, cos, sin_delta: 0.0, cos_delta: 1.0, km_gain: 1.0, observed: false }
+    }
+}
+
+/// Stage 2a in open loop, where the compensation angle is: θ_cmd (patent), or the
+/// observer's rotor angle θc − δ̂ (estimated; this runs the observer). `sin`, `cos` are
+/// those of θ_cmd.
 #[inline(always)]
-fn compensation_current(cfg: &Config, st: &mut State, i_ab: Ab, sin: f32, cos: f32) -> f32 {
-    let omega_e = st.speed_cmd_rad_s * f32::from(cfg.pole_pairs);
-    let (cs, cc, gain) = match &cfg.observer {
+fn rotor_angle(cfg: &Config, st: &mut State, i_ab: Ab, sin: f32, cos: f32) -> CompensationAngle {
+    match &cfg.observer {
         Some(obs) => {
             let input = ObserverInput {
                 current: i_ab,
@@ -212,51 +239,67 @@ fn compensation_current(cfg: &Config, st: &mut State, i_ab: Ab, sin: f32, cos: f
             };
             let delta = obs.update(&mut st.observer, &input);
             let (sd, cd) = sin_cos_rad(delta);
-            // q of θc is δ̂ off the rotor's q axis: divide by cos δ̂ (bounded); and correct
-            // the configured Km by the back-EMF's measure of it.
-            (sin * cd - cos * sd, cos * cd + sin * sd, obs.km_correction(&st.observer) / crate::at_least(cd, 0.5))
+            CompensationAngle {
+                sin: sin * cd - cos * sd,
+                cos: cos * cd + sin * sd,
+                sin_delta: sd,
+                cos_delta: cd,
+                // Correct the configured Km by the back-EMF's measure of it.
+                km_gain: obs.km_correction(&st.observer),
+                observed: true,
+            }
         }
-        None => (sin, cos, 1.0),
-    };
+        None => CompensationAngle::control(sin, cos),
+    }
+}
+
+/// Stage 2b, the compensation current in A (q axis of the control frame, before the law
+/// limits it) at `at`; `op` is the law's operating point in the control frame (open loop
+/// `(I_hold, 0)`, servo `(0, i_q,ctrl)`), used only by a model with current parts
+/// ([`crate::ripple`]).
+#[inline(always)]
+fn compensation_current(cfg: &Config, st: &State, at: &CompensationAngle, op: Dq) -> f32 {
+    let omega_e = st.speed_cmd_rad_s * f32::from(cfg.pole_pairs);
+    let (cs, cc, sd, cd) = (at.sin, at.cos, at.sin_delta, at.cos_delta);
     // The closed current loop is `1/(1 + (s/ωc)·e^{s·Td})`: command the compensation
     // through its inverse along the commanded electrical speed,
     // `S + (1/ωc)·ωe·(S' + Td·ωe·S'')`, so the current itself lands on the detent at every
     // harmonic order. Applied where
     // the angle is the rotor's own (servo, estimated); zero in the patent's open loop.
-    let (series, slope, curv) = cfg.compensation.eval_with_derivatives(cs, cc);
-    gain * (series + cfg.compensation_lead_s * omega_e * (slope + cfg.compensation_lead2_s * omega_e * curv))
+    let lead = |s: f32, slope: f32, curv: f32| {
+        s + cfg.compensation_lead_s * omega_e * (slope + cfg.compensation_lead2_s * omega_e * curv)
+    };
+    if !cfg.ripple.current_dependent {
+        // q of θc is δ̂ off the rotor's q axis: divide by cos δ̂ (bounded).
+        let gain = if at.observed { at.km_gain / crate::at_least(cd, crate::ripple::MIN_DIVISOR) } else { 1.0 };
+        let (series, slope, curv) = cfg.ripple.fixed.eval_with_derivatives(cs, cc);
+        return gain * lead(series, slope, curv);
+    }
+    // The operating point in the rotor's frame (δ̂ = 0 without the observer), and the
+    // torque per ampere the compensation current itself makes there (docs/design.md#real-motors-flux-harmonics).
+    let (i_d, i_q) = (op.d * cd - op.q * sd, op.d * sd + op.q * cd);
+    let v = cfg.ripple.eval(cs, cc, i_d, i_q);
+    at.km_gain * lead(v.current_a, v.slope, v.curvature) / crate::ripple::divisor(&v, sd, cd)
 }
 
-/// Stage 3, the control law: the d/q current commands in A of the mode and compensation
-/// (open loop: holding current on d and the compensation on q, or the angle or table
-/// law; servo: [`servo_law`]).
+/// Stage 3 in open loop: the d/q current commands in A of the compensation law (holding
+/// current on d and the compensation on q, or the angle or table law).
 #[inline(always)]
-fn current_command(
-    cfg: &Config,
-    st: &mut State,
-    theta_cmd: Position,
-    theta_fb: Position,
-    comp_a: f32,
-    sin: f32,
-    cos: f32,
-) -> Dq {
-    match cfg.mode {
-        Mode::OpenLoop => match cfg.compensation_kind {
-            Compensation::Angle => crate::correction::angle_law(cfg.holding_current_a, comp_a),
-            Compensation::Table => crate::correction::table_law(
-                &cfg.table,
-                crate::correction::tick_of(theta_cmd),
-                st.speed_cmd_rad_s,
-                cfg.holding_current_a,
-                sin,
-                cos,
-            ),
-            _ => {
-                let q = cfg.open_loop_iq_limit_a;
-                Dq { d: cfg.holding_current_a, q: crate::bound(comp_a, -q, q) }
-            }
-        },
-        Mode::Servo => servo_law(cfg, st, theta_cmd, theta_fb, comp_a),
+fn open_loop_command(cfg: &Config, st: &State, theta_cmd: Position, comp_a: f32, sin: f32, cos: f32) -> Dq {
+    match cfg.compensation_kind {
+        Compensation::Angle => crate::correction::angle_law(cfg.holding_current_a, comp_a),
+        Compensation::Table => crate::correction::table_law(
+            &cfg.table,
+            crate::correction::tick_of(theta_cmd),
+            st.speed_cmd_rad_s,
+            cfg.holding_current_a,
+            sin,
+            cos,
+        ),
+        _ => {
+            let q = cfg.open_loop_iq_limit_a;
+            Dq { d: cfg.holding_current_a, q: crate::bound(comp_a, -q, q) }
+        }
     }
 }
 
@@ -311,11 +354,15 @@ fn sensor_fault(cfg: &Config, st: &mut State, theta_cmd: Position, theta_fb: Pos
     }
 }
 
-/// Patent eq. 15: `i_q = (1/Km)[Kpv ω_err + Kpp θ_err + Kip ∫θ_err + Σ A sin(kθe_fb+φ) + Fs sgn(ω_cmd)]`,
+/// Stage 3 in servo mode, patent eq. 15:
+/// `i_q = (1/Km)[Kpv ω_err + Kpp θ_err + Kip ∫θ_err + Σ A sin(kθe_fb+φ) + Fs sgn(ω_cmd)]`,
 /// clamped to the current limit; the position integral stops while the clamp pushes the
-/// same way (anti-windup).
+/// same way (anti-windup). With current parts in the ripple model the compensation is
+/// evaluated at `i_q,ctrl`, the feedback and friction terms of this period (bounded to the
+/// limit), and divided by the torque per ampere at `θ_fb` ([`crate::ripple`]). `sin`, `cos`
+/// are those of `θ_fb`.
 #[inline]
-fn servo_law(cfg: &Config, st: &mut State, theta_cmd: Position, theta_fb: Position, comp_a: f32) -> Dq {
+fn servo_law(cfg: &Config, st: &mut State, theta_cmd: Position, theta_fb: Position, sin: f32, cos: f32) -> Dq {
     let theta_err = theta_cmd.wrapping_diff(theta_fb) as f32 * cfg.rad_per_unit;
     let omega_err = st.speed_cmd_rad_s - st.encoder.velocity_rad_s;
     let friction = if st.speed_cmd_rad_s > 0.0 {
@@ -326,8 +373,11 @@ fn servo_law(cfg: &Config, st: &mut State, theta_cmd: Position, theta_fb: Positi
         0.0
     };
     let integral_next = st.position_integral_rad_s + theta_err * cfg.period_s;
-    let iq = cfg.kpv_a * omega_err + cfg.kpp_a * theta_err + cfg.kip_a * integral_next + comp_a + friction;
+    let feedback = cfg.kpv_a * omega_err + cfg.kpp_a * theta_err + cfg.kip_a * integral_next;
     let lim = cfg.current_limit_a;
+    let op = Dq { d: 0.0, q: crate::bound(feedback + friction, -lim, lim) };
+    let comp_a = compensation_current(cfg, st, &CompensationAngle::control(sin, cos), op);
+    let iq = feedback + comp_a + friction;
     let clamped = crate::bound(iq, -lim, lim);
     if clamped == iq || theta_err * iq < 0.0 {
         st.position_integral_rad_s = integral_next;

@@ -7,7 +7,8 @@
 //! Per period ([`step`]): sample the phase currents (and the encoder in servo mode);
 //! Park them at the controller's angle (`Nr·θ_cmd` in open loop, `Nr·θ_fb` in servo);
 //! the outer law gives `i_d`, `i_q` commands (open loop: `I_hold` and the detent
-//! compensation `(1/Km) Σ A_k sin(k θe + φ_k)`; servo: patent eq. 15); PI current loops
+//! compensation `(1/Km) Σ A_k sin(k θe + φ_k)`; servo: patent eq. 15; a motor whose ripple
+//! grows with the current has it cancelled at the law's operating point, [`ripple`]); PI current loops
 //! with anti-windup give `v_d`, `v_q`; inverse Park; the modulator limits the voltage vector
 //! to the bus and returns leg duties in `[0, 1]`.
 //!
@@ -30,7 +31,7 @@
 //! let params = Params {
 //!     motor: MotorModel {
 //!         km_nm_per_a: 0.3, pole_pairs: 50, resistance_ohm: 0.9, inductance_h: 2.5e-3,
-//!         coulomb_friction_nm: 0.01, detent: &detent,
+//!         coulomb_friction_nm: 0.01, detent: &detent, current_ripple: CurrentRipple::NONE,
 //!     },
 //!     drive: DriveSettings {
 //!         bus_voltage_v: 48.0, pwm_hz: 20_000.0, holding_current_a: 1.9,
@@ -65,6 +66,7 @@ pub mod modulator;
 pub mod observer;
 pub mod park;
 pub mod pi;
+pub mod ripple;
 pub mod trig;
 
 pub use angle::{MicrostepAccumulator, Position};
@@ -78,6 +80,7 @@ pub use detent::{Harmonic, HarmonicSeries, MAX_HARMONIC_ORDER};
 pub use drive::{CURRENT_SENSOR_FAULT_PERIODS, Measurement, Output, Signals, State, step};
 pub use modulator::{LegDuties, Topology};
 pub use park::{Ab, Dq};
+pub use ripple::{CurrentRipple, RippleModel};
 
 /// `x` limited to `[lo, hi]` (`lo ≤ hi`), with NaN mapped to `lo` (`f32::clamp` would
 /// return NaN, and the controller must never output or store NaN).

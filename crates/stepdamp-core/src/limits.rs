@@ -196,6 +196,21 @@ pub const DETENT_PHASE_RAD: Limit = closed(
     "a phase is in radians; beyond ±2π it is almost surely in degrees",
 );
 
+/// Amplitude of one harmonic of the ripple per ampere of `i_d` or `i_q`
+/// ([`crate::ripple::CurrentRipple`]): not a profile key (the profile's `[motor.flux]`
+/// gives it), so not in [`ALL`].
+pub const CURRENT_RIPPLE_NM_PER_A: Limit = closed(
+    "current_ripple.amplitude_nm_per_a",
+    0.0,
+    100.0,
+    "N·m/A",
+    "the ripple per ampere is a fraction of the torque constant, which is below 50 N·m/A",
+);
+
+/// Phase of one harmonic of the ripple per ampere ([`crate::ripple::CurrentRipple`]): the
+/// range of [`DETENT_PHASE_RAD`] under its own key.
+pub const CURRENT_RIPPLE_PHASE_RAD: Limit = Limit { key: "current_ripple.phase_rad", ..DETENT_PHASE_RAD };
+
 /// Detent harmonic order `k`.
 pub const DETENT_ORDER: Limit = closed(
     "detent.order",

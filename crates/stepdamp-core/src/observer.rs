@@ -47,9 +47,9 @@
 //! the commanded one (no dead time). Cost while the motor runs: two `libm::atan2f`
 //! (single precision throughout, FPU only: `atanf`'s polynomial in `f32`, checked by
 //! `firmware/qemu-m4/check-symbols.sh`), one `libm::sqrtf`, about 60 flops per period;
-//! the step adds one [`crate::trig::sin_cos_rad`] of `δ̂`. About 580 instructions of the
+//! the step adds one [`crate::trig::sin_cos_rad`] of `δ̂`. About 560 instructions of the
 //! estimated-angle step on the Cortex-M4F (the medians in `firmware/qemu-m4/instructions.txt`:
-//! 1,094 against 514 for the patent's open loop).
+//! 1,080 against 522 for the patent's open loop).
 
 use crate::lowpass::LowPass;
 use crate::park::{Ab, Dq};

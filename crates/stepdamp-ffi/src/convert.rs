@@ -4,8 +4,8 @@
 use core::ffi::CStr;
 
 use stepdamp_core::{
-    Compensation, Config, ConfigError, DriveSettings, Harmonic, Mode, MotorModel, Output, PATENT_MOTOR_DETENT, Params,
-    ServoGains, Topology,
+    Compensation, Config, ConfigError, CurrentRipple, DriveSettings, Harmonic, Mode, MotorModel, Output,
+    PATENT_MOTOR_DETENT, Params, ServoGains, Topology,
 };
 
 use crate::types::*;
@@ -93,6 +93,8 @@ pub(crate) fn params_from_c<'t>(
             inductance_h: m.inductance_h,
             coulomb_friction_nm: m.coulomb_friction_nm,
             detent: table.get(..n).unwrap_or(&[]),
+            // C cannot give the ripple that grows with the current yet (docs/c.md).
+            current_ripple: CurrentRipple::NONE,
         },
         drive: DriveSettings {
             bus_voltage_v: d.bus_voltage_v,

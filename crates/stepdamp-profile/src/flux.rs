@@ -18,7 +18,8 @@
 //! `S_a = sin θe`, `S_b = −cos θe`: the plant of docs/design.md#the-plant, `τ_m = Km·i_q`.
 //!
 //! A profile without `[motor.flux]` has the pure sine; the simulator then runs today's plant
-//! bit for bit. The controller does not read this section (yet): it is the motor's truth.
+//! bit for bit. The controller is given the ripple it makes, per ampere of `i_d` and `i_q`
+//! ([`crate::ripple::ripple_parts`], [`crate::Profile::controller_harmonics`]).
 
 use serde::{Deserialize, Serialize};
 use stepdamp_core::limits::Limit;

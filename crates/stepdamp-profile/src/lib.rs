@@ -41,8 +41,8 @@ pub use error::ProfileError;
 pub use figures::{MotorFigures, MotorShow, ResonanceSpeed};
 pub use flux::{FluxHarmonic, FluxSection, FluxShape};
 pub use load::{MAX_PROFILE_BYTES, MotorRef, PRESETS, preset_text};
-pub use profile::{Profile, TYPICAL_DETENT_ORDERS};
-pub use ripple::{Ripple, RippleError, RippleHarmonic, ripple};
+pub use profile::{ControllerHarmonics, Profile, TYPICAL_DETENT_ORDERS};
+pub use ripple::{Ripple, RippleError, RippleHarmonic, RippleParts, ripple, ripple_parts};
 pub use runlog::LogRow;
 pub use stepdamp_core::limits;
 

@@ -4,8 +4,8 @@ use crate::data::ProfileData;
 use crate::error::ProfileError;
 use serde::Serialize;
 use stepdamp_core::{
-    Compensation, Config, ConfigError, CorrectionTable, DriveSettings, Harmonic, Mode, MotorModel, Params, ServoGains,
-    Topology,
+    Compensation, Config, ConfigError, CorrectionTable, CurrentRipple, DriveSettings, Harmonic, Mode, MotorModel,
+    Params, ServoGains, Topology,
 };
 
 /// The detent orders of a typical hybrid stepper (1.8°, 50 teeth): the 4th harmonic of the
@@ -13,6 +13,25 @@ use stepdamp_core::{
 /// rotor asymmetries). Identification fits them by default; a profile without detent has
 /// its resonances at these orders.
 pub const TYPICAL_DETENT_ORDERS: [u16; 3] = [1, 2, 4];
+
+/// The ripple model a profile gives the controller ([`Profile::controller_harmonics`]), in
+/// the detent's convention (torque on the rotor `−A·sin(k·θe + φ)`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ControllerHarmonics {
+    /// The detent, N·m.
+    pub detent: Vec<Harmonic>,
+    /// The ripple per ampere of `i_d`, N·m/A (empty without `[motor.flux]`).
+    pub per_amp_d: Vec<Harmonic>,
+    /// The ripple per ampere of `i_q` without its mean, N·m/A (empty without `[motor.flux]`).
+    pub per_amp_q: Vec<Harmonic>,
+}
+
+impl ControllerHarmonics {
+    /// The current parts as the core takes them.
+    pub fn current_ripple(&self) -> CurrentRipple<'_> {
+        CurrentRipple { per_amp_d: &self.per_amp_d, per_amp_q: &self.per_amp_q }
+    }
+}
 
 /// A motor profile whose every key is within its physical range
 /// ([`stepdamp_core::limits`]) and whose derived quantities (natural frequency, resonance
@@ -133,35 +152,36 @@ impl Profile {
             .collect()
     }
 
-    /// The harmonics the controller feeds forward in `mode` (`f32`): the detent, except for a
-    /// motor with a `[motor.flux]` section in open loop, where the ripple that grows with the
-    /// current is there too: the total ripple of [`crate::ripple`] at the holding current and
-    /// no load (`i_d = I_hold`, `i_q = 0`; docs/design.md#real-motors-flux-harmonics). In
-    /// servo at `i_d = 0` the current part is proportional to the torque current and is not
-    /// fed forward (yet). A profile without the section gets [`Profile::harmonics`] unchanged.
-    pub fn controller_harmonics(&self, mode: Mode) -> Vec<Harmonic> {
-        if self.motor.flux.is_default() || mode != Mode::OpenLoop {
-            return self.harmonics();
+    /// The ripple model the controller is given (`f32`): the detent ([`Profile::harmonics`])
+    /// and, from a `[motor.flux]` section, the ripple per ampere of `i_d` and of `i_q`
+    /// ([`crate::ripple::ripple_parts`]; harmonics of zero amplitude left out). The core feeds
+    /// it forward at the operating point of each law (open loop at `θ_cmd`: `(I_hold, 0)`;
+    /// servo: `(0, i_q)` of its feedback; estimated angle: `(I_hold·cos δ̂, I_hold·sin δ̂)`;
+    /// `stepdamp_core::ripple`, docs/design.md#real-motors-flux-harmonics). A profile
+    /// without the section has empty current parts, and the controller runs the detent-only
+    /// laws bit for bit.
+    pub fn controller_harmonics(&self) -> ControllerHarmonics {
+        let detent = self.harmonics();
+        if self.motor.flux.is_default() {
+            return ControllerHarmonics { detent, per_amp_d: Vec::new(), per_amp_q: Vec::new() };
         }
-        // Within the current limit by validation (I_hold ≤ I_limit), so this cannot fail.
-        match crate::ripple::ripple(self, self.drive.holding_current_a, 0.0) {
-            Ok(r) => r
-                .harmonics
-                .iter()
+        let parts = crate::ripple::ripple_parts(self);
+        let f32s = |h: &[crate::ripple::RippleHarmonic]| -> Vec<Harmonic> {
+            h.iter()
                 .filter(|h| h.amplitude_nm > 0.0)
                 .map(|h| Harmonic {
                     order: h.order,
                     amplitude_nm: h.amplitude_nm as f32,
                     phase_rad: h.phase_rad as f32,
                 })
-                .collect(),
-            Err(_) => self.harmonics(),
-        }
+                .collect()
+        };
+        ControllerHarmonics { detent, per_amp_d: f32s(&parts.per_amp_d), per_amp_q: f32s(&parts.per_amp_q) }
     }
 
-    /// The controller's parameters for `mode` and `compensation`; `detent` is
-    /// [`Profile::harmonics`] (borrowed by the result).
-    pub fn params<'a>(&self, detent: &'a [Harmonic], mode: Mode, compensation: Compensation) -> Params<'a> {
+    /// The controller's parameters for `mode` and `compensation`; `model` is
+    /// [`Profile::controller_harmonics`] (borrowed by the result).
+    pub fn params<'a>(&self, model: &'a ControllerHarmonics, mode: Mode, compensation: Compensation) -> Params<'a> {
         let (m, d) = (&self.motor, &self.drive);
         Params {
             motor: MotorModel {
@@ -170,7 +190,8 @@ impl Profile {
                 resistance_ohm: m.resistance_ohm as f32,
                 inductance_h: m.inductance_h as f32,
                 coulomb_friction_nm: m.coulomb_friction_nm as f32,
-                detent,
+                detent: &model.detent,
+                current_ripple: model.current_ripple(),
             },
             drive: DriveSettings {
                 bus_voltage_v: d.bus_voltage_v as f32,
@@ -198,8 +219,8 @@ impl Profile {
         compensation: Compensation,
         table: Option<&CorrectionTable>,
     ) -> Result<Config, ConfigError> {
-        let detent = self.controller_harmonics(mode);
-        let params = self.params(&detent, mode, compensation);
+        let model = self.controller_harmonics();
+        let params = self.params(&model, mode, compensation);
         match table {
             Some(t) => Config::with_table(&params, t),
             None => Config::new(&params),

@@ -144,9 +144,7 @@ pub fn ripple(p: &Profile, i_d: f64, i_q: f64) -> Result<Ripple, RippleError> {
         let extra = format!("; the vector's magnitude is {} A", Num(i_d.hypot(i_q)));
         return Err(err("--iq", i_q, extra));
     }
-    let highest_detent = p.motor.detent.iter().map(|h| h.order).max().unwrap_or(0);
-    let highest_flux = p.motor.flux.harmonics.iter().map(|h| h.order + 1).max().unwrap_or(0);
-    let orders = usize::from(MIN_REPORTED_ORDERS.max(highest_detent).max(highest_flux).max(2));
+    let orders = reported_orders(p);
     let detent = detent_coefficients(p, orders);
     let (mean, current) = current_coefficients(p, i_d, i_q, orders);
     let total: Coefficients = detent.iter().zip(&current).map(|(d, c)| (d.0 + c.0, d.1 + c.1)).collect();
@@ -159,6 +157,45 @@ pub fn ripple(p: &Profile, i_d: f64, i_q: f64) -> Result<Ripple, RippleError> {
         detent: to_harmonics(&detent),
         current: to_harmonics(&current),
     })
+}
+
+/// The ripple of `p` split by what it is proportional to (the ripple is exactly linear in
+/// the rotor-frame currents at each angle): `T(θe) = detent(θe) + i_d·D(θe) + i_q·Q(θe)`,
+/// the parts the controller feeds forward at its operating point
+/// (`stepdamp_core::ripple`, docs/design.md#real-motors-flux-harmonics).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RippleParts {
+    /// The part that does not depend on current, N·m (orders 1 to at least 8).
+    pub detent: Vec<RippleHarmonic>,
+    /// `D`: the motor torque's ripple per ampere of `i_d`, N·m/A (its mean is 0).
+    pub per_amp_d: Vec<RippleHarmonic>,
+    /// `Q̃`: the motor torque's ripple per ampere of `i_q` without its mean, N·m/A.
+    pub per_amp_q: Vec<RippleHarmonic>,
+    /// The mean of `Q`, the torque constant of the whole motor, N·m/A: `Km·(1 + g/2)`
+    /// with a phase imbalance `g`, `Km` for equal phases.
+    pub mean_per_amp_q_nm_per_a: f64,
+}
+
+/// The orders a transform of `p` reports: 1 to at least [`MIN_REPORTED_ORDERS`], and every
+/// detent order and flux-made order (`n + 1` for flux harmonic `n`).
+fn reported_orders(p: &Profile) -> usize {
+    let highest_detent = p.motor.detent.iter().map(|h| h.order).max().unwrap_or(0);
+    let highest_flux = p.motor.flux.harmonics.iter().map(|h| h.order + 1).max().unwrap_or(0);
+    usize::from(MIN_REPORTED_ORDERS.max(highest_detent).max(highest_flux).max(2))
+}
+
+/// The parts of [`RippleParts`]: the motor torque at `(1, 0)` and `(0, 1)` A, the same
+/// transform as [`ripple`] (no current limit applies: these are per ampere).
+pub fn ripple_parts(p: &Profile) -> RippleParts {
+    let orders = reported_orders(p);
+    let (_, d) = current_coefficients(p, 1.0, 0.0, orders);
+    let (mean_q, q) = current_coefficients(p, 0.0, 1.0, orders);
+    RippleParts {
+        detent: to_harmonics(&detent_coefficients(p, orders)),
+        per_amp_d: to_harmonics(&d),
+        per_amp_q: to_harmonics(&q),
+        mean_per_amp_q_nm_per_a: mean_q,
+    }
 }
 
 /// The text `stepdamp motor ripple` prints: one row per order, amplitudes in mN·m.
@@ -307,24 +344,51 @@ mod tests {
     }
 
     #[test]
-    fn the_controller_feeds_forward_the_ripple_at_the_holding_current_in_open_loop_only() {
-        use stepdamp_core::Mode;
-        let plain = Profile::preset("patent-motor").unwrap();
-        for mode in [Mode::OpenLoop, Mode::Servo] {
-            assert_eq!(plain.controller_harmonics(mode), plain.harmonics());
+    fn the_ripple_at_any_current_is_the_detent_plus_the_parts_per_ampere() {
+        let p = motor(FluxSection {
+            phase_b_gain: 0.03,
+            harmonics: vec![
+                FluxHarmonic { order: 3, ratio: 0.012, phase_rad: 0.4 },
+                FluxHarmonic { order: 5, ratio: 0.004, phase_rad: -0.8 },
+            ],
+        });
+        let parts = ripple_parts(&p);
+        let km = p.motor.km_nm_per_a;
+        assert!((parts.mean_per_amp_q_nm_per_a - km * (1.0 + 0.03 / 2.0)).abs() < 1e-12);
+        for (i_d, i_q) in [(1.9, 0.0), (0.0, 0.5), (1.2, -0.9), (-0.3, 2.1)] {
+            let r = ripple(&p, i_d, i_q).unwrap();
+            assert!((r.mean_torque_nm - parts.mean_per_amp_q_nm_per_a * i_q).abs() < 1e-12);
+            for j in 0..50 {
+                let te = 0.13 * f64::from(j);
+                let sum = eval(&parts.detent, te) + i_d * eval(&parts.per_amp_d, te) + i_q * eval(&parts.per_amp_q, te);
+                assert!((eval(&r.harmonics, te) - sum).abs() < 1e-12, "({i_d}, {i_q}) θe {te}");
+            }
         }
+    }
+
+    #[test]
+    fn the_controller_is_given_the_detent_and_the_ripple_per_ampere() {
+        let plain = Profile::preset("patent-motor").unwrap();
+        let m = plain.controller_harmonics();
+        assert_eq!((m.detent, m.per_amp_d.len(), m.per_amp_q.len()), (plain.harmonics(), 0, 0));
         let p = motor(FluxSection {
             phase_b_gain: 0.03,
             harmonics: vec![FluxHarmonic { order: 3, ratio: 0.012, phase_rad: 0.4 }],
         });
-        assert_eq!(p.controller_harmonics(Mode::Servo), p.harmonics());
-        let r = ripple(&p, p.drive.holding_current_a, 0.0).unwrap();
-        let ol = p.controller_harmonics(Mode::OpenLoop);
-        let want: Vec<(u16, f32)> =
-            r.harmonics.iter().filter(|h| h.amplitude_nm > 0.0).map(|h| (h.order, h.amplitude_nm as f32)).collect();
-        assert_eq!(ol.iter().map(|h| (h.order, h.amplitude_nm)).collect::<Vec<_>>(), want);
-        // Order 4 carries the detent and 3·h3·Km·I_hold.
-        assert!(ol.iter().any(|h| h.order == 4 && h.amplitude_nm > 0.03));
+        let m = p.controller_harmonics();
+        assert_eq!(m.detent, p.harmonics());
+        let parts = ripple_parts(&p);
+        let nonzero = |h: &[RippleHarmonic]| -> Vec<(u16, f32)> {
+            h.iter().filter(|h| h.amplitude_nm > 0.0).map(|h| (h.order, h.amplitude_nm as f32)).collect()
+        };
+        let given = |h: &[stepdamp_core::Harmonic]| -> Vec<(u16, f32)> {
+            h.iter().map(|h| (h.order, h.amplitude_nm)).collect()
+        };
+        assert_eq!(given(&m.per_amp_d), nonzero(&parts.per_amp_d));
+        assert_eq!(given(&m.per_amp_q), nonzero(&parts.per_amp_q));
+        // Per ampere of i_d at a_3 = 0.4: order 4 carries 3·h3·Km, order 2 the imbalance g·Km/2.
+        let d4 = m.per_amp_d.iter().find(|h| h.order == 4).unwrap().amplitude_nm;
+        assert!((f64::from(d4) - 3.0 * 0.012 * 0.3).abs() < 1e-3 * 0.3, "{d4}");
     }
 
     #[test]

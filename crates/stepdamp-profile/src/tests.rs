@@ -172,7 +172,7 @@ fn the_patent_motor_preset_is_the_cores_reference_controller() {
             d.servo.velocity_filter_hz = 300.0;
         })
         .unwrap();
-    let h = p.harmonics();
+    let h = p.controller_harmonics();
     for mode in [Mode::OpenLoop, Mode::Servo] {
         for comp in [Compensation::Off, Compensation::Patent, Compensation::Estimated] {
             let mine = p.params(&h, mode, comp);

@@ -1,0 +1,197 @@
+//! The operating-point laws of [`super`]: each cancels a known ripple at its current; bad
+//! inputs neither panic nor leak NaN; a model without current parts is the detent-only law.
+
+extern crate std;
+
+use super::*;
+use crate::{Config, Measurement, Params, State, step};
+use proptest::prelude::*;
+
+/// A 4th- and 2nd-order ripple per ampere of `i_q` large enough that the division by the
+/// torque per ampere matters (`cq` up to 0.27), and one per ampere of `i_d`.
+static PER_AMP_Q: [Harmonic; 2] = [
+    Harmonic { order: 4, amplitude_nm: 0.06, phase_rad: 0.4 },
+    Harmonic { order: 2, amplitude_nm: 0.02, phase_rad: -1.0 },
+];
+static PER_AMP_D: [Harmonic; 2] = [
+    Harmonic { order: 4, amplitude_nm: 0.03, phase_rad: 1.2 },
+    Harmonic { order: 2, amplitude_nm: 0.005, phase_rad: 0.3 },
+];
+const RIPPLE: CurrentRipple<'static> = CurrentRipple { per_amp_d: &PER_AMP_D, per_amp_q: &PER_AMP_Q };
+const KM: f64 = 0.3;
+
+/// `Σ A·sin(k·θe + φ)` in `f64`: minus the torque the list puts on the rotor.
+fn series(h: &[Harmonic], te: f64) -> f64 {
+    h.iter().map(|h| f64::from(h.amplitude_nm) * (f64::from(h.order) * te + f64::from(h.phase_rad)).sin()).sum()
+}
+
+/// Motor torque plus ripple on the rotor at rotor-frame currents `(i_d, i_q)`, N·m.
+fn torque(detent: &[Harmonic], te: f64, i_d: f64, i_q: f64) -> f64 {
+    KM * i_q - series(detent, te) - i_d * series(&PER_AMP_D, te) - i_q * series(&PER_AMP_Q, te)
+}
+
+fn params(mode: Mode, comp: Compensation, ripple: CurrentRipple<'static>) -> Params<'static> {
+    let mut p = Params::patent_motor(mode, comp);
+    p.motor.current_ripple = ripple;
+    p
+}
+
+/// A servo with a position gain alone (16 A/rad) and no friction, so that a configuration
+/// with the compensation off gives the feedback current alone, `Kp_pos·θ_err/Km`.
+fn servo(comp: Compensation, ripple: CurrentRipple<'static>) -> Config {
+    let mut p = params(Mode::Servo, comp, ripple);
+    p.motor.coulomb_friction_nm = 0.0;
+    p.servo = crate::ServoGains {
+        velocity_nm_s_per_rad: 0.0,
+        position_nm_per_rad: 4.8,
+        position_integral_nm_per_rad_s: 0.0,
+        velocity_filter_hz: 300.0,
+    };
+    Config::new(&p).unwrap()
+}
+
+#[test]
+fn the_servo_law_cancels_the_ripple_at_the_feedback_current() {
+    // Command at rest, rotor held at `count`: the feedback current i_q,ctrl is the q command
+    // of the same loop without compensation; with it, the torque on the rotor (motor,
+    // detent and the ripple of the total current) must be exactly Km·i_q,ctrl.
+    let (off, on) = (servo(Compensation::Off, RIPPLE), servo(Compensation::Patent, RIPPLE));
+    let (mut worst, mut worst_undivided, mut largest) = (0.0f64, 0.0f64, 0.0f64);
+    for count in -40i32..40 {
+        let m = Measurement { encoder_count: count as u32, ..Default::default() };
+        let (mut a, mut b) = (State::default(), State::default());
+        let (oa, ob) = (step(&off, &mut a, &m), step(&on, &mut b, &m));
+        let ctrl = f64::from(oa.signals.i_dq_cmd.q);
+        let total = f64::from(ob.signals.i_dq_cmd.q);
+        let te = f64::from(ob.signals.theta_fb.electrical_angle_rad());
+        largest = largest.max(ctrl.abs());
+        worst = worst.max((torque(&PATENT, te, 0.0, total) - KM * ctrl).abs());
+        // Without the division the compensation's own ripple would stay.
+        let s = (series(&PATENT, te) + ctrl * series(&PER_AMP_Q, te)) / KM;
+        worst_undivided = worst_undivided.max((torque(&PATENT, te, 0.0, ctrl + s) - KM * ctrl).abs());
+    }
+    assert!(largest > 0.9, "the feedback carries up to {largest} A only");
+    assert!(worst < 2e-6, "residual torque {worst} N·m");
+    assert!(worst_undivided > 100.0 * worst, "the division does nothing: {worst_undivided} vs {worst}");
+}
+
+const PATENT: [Harmonic; 3] = crate::PATENT_MOTOR_DETENT;
+
+#[test]
+fn a_servo_runs_the_detent_law_when_only_i_d_makes_ripple() {
+    // i_d = 0 in servo: a ripple per ampere of i_d changes nothing, bit for bit.
+    let d_only = CurrentRipple { per_amp_d: &PER_AMP_D, per_amp_q: &[] };
+    let (plain, with_d) = (servo(Compensation::Patent, CurrentRipple::NONE), servo(Compensation::Patent, d_only));
+    assert_eq!(plain, with_d);
+    assert!(!with_d.ripple.is_current_dependent());
+}
+
+#[test]
+fn the_open_loop_law_at_theta_cmd_feeds_the_ripple_at_the_holding_current() {
+    let cfg = Config::new(&params(Mode::OpenLoop, Compensation::Patent, RIPPLE)).unwrap();
+    assert!(!cfg.ripple.is_current_dependent(), "folded into one table at configuration");
+    let mut st = State::default();
+    st.command_speed(&cfg, 5.0);
+    for _ in 0..400 {
+        let out = step(&cfg, &mut st, &Measurement::default());
+        let te = f64::from(out.signals.theta_cmd.electrical_angle_rad());
+        let want = (series(&PATENT, te) + 1.9 * series(&PER_AMP_D, te)) / KM;
+        assert!((f64::from(out.signals.i_dq_cmd.q) - want).abs() < 2e-6, "θe {te}");
+        assert_eq!(out.signals.i_dq_cmd.d, 1.9);
+    }
+}
+
+#[test]
+fn the_estimated_law_cancels_the_ripple_at_the_load_angle() {
+    // The law of the module doc at the rotor's angle θe and load angle δ (within ±0.5 rad,
+    // where the divisor's bound does not act on this ripple): the holding
+    // current on d of θc = θe + δ and i_comp on its q axis make, with the ripple, the
+    // torque of a pure-sine motor, Km·I·sin δ.
+    let cfg = Config::new(&params(Mode::OpenLoop, Compensation::Estimated, RIPPLE)).unwrap();
+    let m = cfg.ripple;
+    assert!(m.is_current_dependent());
+    let i = 1.9f32;
+    for n in 0..200 {
+        let te = 0.0314 * n as f32;
+        let delta = 0.5 * libm::sinf(0.37 * n as f32);
+        let (s1, c1) = libm::sincosf(te);
+        let (sd, cd) = libm::sincosf(delta);
+        let v = m.eval(s1, c1, i * cd, i * sd);
+        let comp = f64::from(v.current_a / divisor(&v, sd, cd));
+        let (te, delta) = (f64::from(te), f64::from(delta));
+        let (i_d, i_q) = (1.9 * delta.cos() - comp * delta.sin(), 1.9 * delta.sin() + comp * delta.cos());
+        let residual = torque(&PATENT, te, i_d, i_q) - KM * 1.9 * delta.sin();
+        assert!(residual.abs() < 2e-6, "θe {te} δ {delta}: {residual} N·m");
+    }
+}
+
+#[test]
+fn the_estimated_law_at_standstill_divides_the_ripple_at_the_holding_current() {
+    // At rest the observer's δ̂ is 0: i_comp = S(θc, I_hold, 0) / (1 − cq(θc)).
+    let cfg = Config::new(&params(Mode::OpenLoop, Compensation::Estimated, RIPPLE)).unwrap();
+    let mut st = State::default();
+    for n in 0..50 {
+        let count = n * 977;
+        let out = step(&cfg, &mut st, &Measurement { i_a_a: 1.9, i_b_a: 0.0, encoder_count: count });
+        let te = f64::from(out.signals.theta_cmd.electrical_angle_rad());
+        let s = (series(&PATENT, te) + 1.9 * series(&PER_AMP_D, te)) / KM;
+        let want = s / (1.0 - series(&PER_AMP_Q, te) / KM);
+        assert!((f64::from(out.signals.i_dq_cmd.q) - want).abs() < 2e-6, "period {n}");
+    }
+}
+
+#[test]
+fn the_divisor_is_bounded_and_nan_gives_the_bound() {
+    let v = |q: f32, d: f32| RippleValue { per_amp_q: q, per_amp_d: d, ..Default::default() };
+    assert_eq!(divisor(&v(0.0, 0.0), 0.0, 1.0), 1.0);
+    assert_eq!(divisor(&v(0.9, 0.0), 0.0, 1.0), MIN_DIVISOR);
+    assert_eq!(divisor(&v(0.2, 0.0), 0.0, -1.0), MIN_DIVISOR);
+    assert_eq!(divisor(&v(f32::NAN, 0.0), 0.0, 1.0), MIN_DIVISOR);
+    assert_eq!(divisor(&v(0.0, f32::INFINITY), -1.0, 0.0), MIN_DIVISOR);
+    assert!((divisor(&v(-0.1, 0.2), 0.6, 0.8) - (0.8 * 1.1 + 0.6 * 0.2)).abs() < 1e-6);
+}
+
+#[test]
+fn bad_current_ripple_is_refused_with_its_key() {
+    static NEG: [Harmonic; 1] = [Harmonic { order: 4, amplitude_nm: -0.1, phase_rad: 0.0 }];
+    static DEG: [Harmonic; 1] = [Harmonic { order: 4, amplitude_nm: 0.1, phase_rad: 90.0 }];
+    static ORDER: [Harmonic; 1] = [Harmonic { order: 40, amplitude_nm: 0.1, phase_rad: 0.0 }];
+    let field = |r: CurrentRipple<'static>| match Config::new(&params(Mode::Servo, Compensation::Off, r)) {
+        Err(ConfigError::Invalid { field, .. }) => field,
+        other => panic!("{other:?}"),
+    };
+    assert_eq!(field(CurrentRipple { per_amp_d: &NEG, per_amp_q: &[] }), "current_ripple.amplitude_nm_per_a");
+    assert_eq!(field(CurrentRipple { per_amp_d: &[], per_amp_q: &DEG }), "current_ripple.phase_rad");
+    let r = CurrentRipple { per_amp_d: &[], per_amp_q: &ORDER };
+    assert_eq!(Config::new(&params(Mode::Servo, Compensation::Off, r)), Err(ConfigError::HarmonicOrder { order: 40 }));
+}
+
+/// The largest ripple the limits let through: `cq` far beyond 1, so the divisor's bound acts.
+static HUGE_Q: [Harmonic; 2] = [
+    Harmonic { order: 4, amplitude_nm: 100.0, phase_rad: 0.0 },
+    Harmonic { order: 32, amplitude_nm: 100.0, phase_rad: -6.0 },
+];
+
+proptest! {
+    #[test]
+    fn any_input_with_current_ripple_gives_duties_in_range_and_finite_commands(
+        seq in proptest::collection::vec(
+            (proptest::num::f32::ANY, proptest::num::f32::ANY, any::<u32>(), proptest::num::f32::ANY), 1..60),
+        servo in any::<bool>(),
+        comp in 0usize..3,
+        huge in any::<bool>(),
+    ) {
+        let mode = if servo { Mode::Servo } else { Mode::OpenLoop };
+        let comp = [Compensation::Off, Compensation::Patent, Compensation::Estimated][comp];
+        let ripple = if huge { CurrentRipple { per_amp_d: &HUGE_Q, per_amp_q: &HUGE_Q } } else { RIPPLE };
+        let cfg = Config::new(&params(mode, comp, ripple)).unwrap();
+        let mut st = State::default();
+        for (ia, ib, enc, w) in seq {
+            st.command_speed(&cfg, w);
+            let out = step(&cfg, &mut st, &Measurement { i_a_a: ia, i_b_a: ib, encoder_count: enc });
+            prop_assert!(out.duties.0.iter().all(|d| (0.0..=1.0).contains(d)));
+            prop_assert!(out.signals.i_dq_cmd.q.is_finite() && out.signals.i_dq_cmd.d.is_finite());
+            prop_assert!(out.signals.v_ab.a.is_finite() && out.signals.v_ab.b.is_finite());
+        }
+    }
+}
