@@ -28,7 +28,7 @@ fuzz_target!(|data: &[u8]| {
     }
     match parse_sensorless_log(data, "fuzz.csv") {
         Ok(log) => {
-            let w = Winding { pole_pairs: 50, resistance_ohm: 0.9, inductance_h: 2.5e-3 };
+            let w = Winding { pole_pairs: 50, resistance_ohm: 0.9, inductance_h: 2.5e-3, shape: None };
             if let Ok(e) = estimate(std::slice::from_ref(&log), &w, &FluxOptions::default()) {
                 assert_eq!(e.logs[0].t_s.len(), log.t_s.len());
                 assert_eq!(e.logs[0].theta_fb_rad.len(), log.t_s.len());
