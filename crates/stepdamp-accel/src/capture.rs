@@ -340,6 +340,19 @@ impl AccelCapture {
         self.gcode.ok_or_else(|| CaptureError::NoGcode { file: self.source.clone(), line: self.line })
     }
 
+    /// The `M973` constant trial of this capture, `(H, F, R, mag, pha)`, or why it is not
+    /// one (an unknown G-code, a speed sweep, a swept trial), naming `purpose` in the message.
+    pub fn constant_trial(&self, purpose: &str) -> Result<(u32, f64, f64, f64, f64), CaptureError> {
+        let g = self.require_gcode()?;
+        match g {
+            Gcode::ParamSweep { speed, revs, trial, .. } => match trial.constant() {
+                Some((mag, pha)) => Ok((trial.harmonic, speed, revs, mag, pha)),
+                None => Err(self.unusable(format!("`{g}` sweeps its trial: {purpose} needs A = B and C = D"))),
+            },
+            Gcode::SpeedSweep { .. } => Err(self.unusable(format!("`{g}` sweeps the speed: {purpose} needs M973"))),
+        }
+    }
+
     /// A [`CaptureError::Unusable`] for this capture.
     pub(crate) fn unusable(&self, reason: String) -> CaptureError {
         CaptureError::Unusable { file: self.source.clone(), line: self.line, reason }

@@ -254,15 +254,7 @@ pub fn influence_of_captures(
     periods_per_block: u32,
     scale: f64,
 ) -> Result<Influence, InfluenceError> {
-    let sweep = |c: &AccelCapture| match c.require_gcode()? {
-        Gcode::ParamSweep { trial, .. } => trial.constant().map(|t| (trial.harmonic, t)).ok_or_else(|| {
-            c.unusable(format!(
-                "`{}` sweeps its trial: an influence step needs A = B and C = D",
-                c.gcode.expect("known")
-            ))
-        }),
-        g => Err(c.unusable(format!("`{g}` sweeps the speed: an influence step needs M973"))),
-    };
+    let sweep = |c: &AccelCapture| c.constant_trial("an influence step").map(|(h, _, _, mag, pha)| (h, (mag, pha)));
     let (h0, (mag0, _)) = sweep(base)?;
     let (h1, (mag, pha)) = sweep(trial)?;
     if mag0 != 0.0 || h0 != h1 {

@@ -3,7 +3,7 @@
 //! baseline (no trial) and constant trial giving the influence coefficient and the shift that
 //! cancels the baseline, added to the table item that was in use while they were recorded.
 
-use crate::capture::{AccelCapture, Gcode, Reconstruction};
+use crate::capture::{AccelCapture, Reconstruction};
 use crate::influence::{Complex, Influence, InfluenceError, Response, harmonic_response, influence};
 use crate::influence::{table_item, table_shift};
 use crate::timing::estimate_first_sample;
@@ -76,17 +76,10 @@ pub struct Refined {
     pub expected_residual95: f64,
 }
 
-/// The constant trial `(harmonic, mag, pha)` of an `M973`, or why the capture is not one.
+/// The constant trial `(H, F, sign of R, mag, pha)` of an `M973`, or why the capture is not one.
 fn constant_trial(c: &AccelCapture) -> Result<(u32, f64, f64, f64, f64), InfluenceError> {
-    match c.require_gcode()? {
-        Gcode::ParamSweep { speed, revs, trial, .. } => match trial.constant() {
-            Some((mag, pha)) => Ok((trial.harmonic, speed, revs.signum(), mag, pha)),
-            None => Err(c
-                .unusable(format!("`{}` sweeps its trial: a refinement needs A = B and C = D", c.gcode.expect("known")))
-                .into()),
-        },
-        g => Err(c.unusable(format!("`{g}` sweeps the speed: a refinement needs M973 captures")).into()),
-    }
+    let (h, speed, revs, mag, pha) = c.constant_trial("a refinement")?;
+    Ok((h, speed, revs.signum(), mag, pha))
 }
 
 /// The reconstruction of capture `c` under `o`.
@@ -182,7 +175,7 @@ fn refine_pair(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::capture::{Axis, TrialSweep};
+    use crate::capture::{Axis, Gcode, TrialSweep};
     use crate::influence::tests::{recon, synthetic};
 
     /// The synthetic captures' harmonic 2 at 1.5 rev/s, 12 revolutions (`revs` signed).
