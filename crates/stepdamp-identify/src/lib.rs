@@ -10,6 +10,7 @@
 //! | [`log`] | read a run-log CSV (docs/files.md); errors name the file, line and column |
 //! | [`kinematics`] | speed and acceleration from a quantised encoder angle |
 //! | [`lsq`] | least squares (QR + SVD) with a block-robust covariance |
+//! | [`emf`] | the flux linkage's harmonics and phase imbalance from a fast run's back-EMF |
 //! | [`fit`] | the torque balance fit: harmonics, `Fs`, `D`, intervals, warnings |
 //! | [`conditions`] | what the logs can decide: slow runs short of friction, `J` fitted or held |
 //! | [`model`] | the identified model and the profile made from it |
@@ -47,6 +48,7 @@
 //! ```
 
 pub mod conditions;
+pub mod emf;
 pub mod fit;
 pub mod from_logs;
 pub mod kinematics;

@@ -92,7 +92,27 @@ pub struct RunLog {
     pub iq_source: IqSource,
     /// Header columns that were not used (unknown names), in file order.
     pub ignored_columns: Vec<String>,
+    /// The phase currents and applied voltages, kept for a run fast enough for the back-EMF
+    /// fit of the flux linkage ([`crate::emf::is_emf_run`]) when the log has all four
+    /// columns; `None` otherwise (a slow run's are dropped once read, so they cost no memory).
+    pub phases: Option<PhaseSignals>,
 }
+
+/// The winding signals of a run log, each as long as the log (docs/files.md#run-log-csv).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PhaseSignals {
+    /// Sampled phase A current in A, at `t_s`.
+    pub i_a_a: Vec<f64>,
+    /// Sampled phase B current in A, at `t_s`.
+    pub i_b_a: Vec<f64>,
+    /// Mean voltage across winding A over `[t_s, t_s + Ts)` in V, as applied.
+    pub v_a_v: Vec<f64>,
+    /// Mean voltage across winding B over `[t_s, t_s + Ts)` in V, as applied.
+    pub v_b_v: Vec<f64>,
+}
+
+/// The columns of [`PhaseSignals`], in its field order.
+pub const PHASE_COLUMNS: [&str; 4] = ["i_a_a", "i_b_a", "v_a_v", "v_b_v"];
 
 /// Options of log reading.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -384,13 +404,18 @@ pub(crate) fn log_from_columns<R: Read>(
         return Err(cols.missing("i_q_a", "torque current in A; or give both i_a_a and i_b_a"));
     };
     let want_cmd = cols.has("iq_cmd_a");
+    let want_phases = PHASE_COLUMNS.iter().all(|c| cols.has(c));
     let mut wanted = vec!["t_s", "theta_fb_rad"];
     match iq_source {
         IqSource::Column => wanted.push("i_q_a"),
+        IqSource::Park if want_phases => {}
         IqSource::Park => wanted.extend(["i_a_a", "i_b_a"]),
     }
     if want_cmd {
         wanted.push("iq_cmd_a");
+    }
+    if want_phases {
+        wanted.extend(PHASE_COLUMNS);
     }
     let ignored = cols.ignored.clone();
     let path = source.to_string();
@@ -405,15 +430,21 @@ pub(crate) fn log_from_columns<R: Read>(
     let mut next = || values.next().unwrap_or_default();
     let (t, th) = (next(), next());
     let iq = match iq_source {
-        IqSource::Column => next(),
+        IqSource::Column => Some(next()),
+        IqSource::Park if want_phases => None,
         IqSource::Park => {
             let (ia, ib) = (next(), next());
-            let nr = f64::from(opts.pole_pairs);
-            th.iter().zip(ia.iter().zip(&ib)).map(|(&th, (&a, &b))| park_q(nr * th, a, b)).collect()
+            Some(park_q_all(opts.pole_pairs, &th, &ia, &ib))
         }
     };
-    let cmd = want_cmd.then(next);
-    let log = RunLog {
+    let cmd = want_cmd.then(&mut next);
+    let phases = want_phases.then(|| PhaseSignals { i_a_a: next(), i_b_a: next(), v_a_v: next(), v_b_v: next() });
+    let iq = match (iq, &phases) {
+        (Some(iq), _) => iq,
+        (None, Some(p)) => park_q_all(opts.pole_pairs, &th, &p.i_a_a, &p.i_b_a),
+        (None, None) => Vec::new(),
+    };
+    let mut log = RunLog {
         source: path,
         t_s: t,
         theta_fb_rad: th,
@@ -421,9 +452,19 @@ pub(crate) fn log_from_columns<R: Read>(
         iq_cmd_a: cmd,
         iq_source,
         ignored_columns: ignored,
+        phases,
     };
     log.check_length(opts, last_line)?;
+    if !crate::emf::is_emf_run(&log, opts.pole_pairs) {
+        log.phases = None;
+    }
     Ok(log)
+}
+
+/// `i_q` of every sample: [`park_q`] at `Nr·θ_fb`.
+fn park_q_all(pole_pairs: u16, th: &[f64], ia: &[f64], ib: &[f64]) -> Vec<f64> {
+    let nr = f64::from(pole_pairs);
+    th.iter().zip(ia.iter().zip(ib)).map(|(&th, (&a, &b))| park_q(nr * th, a, b)).collect()
 }
 
 /// `i_q = −i_a sin θe + i_b cos θe`.
@@ -435,8 +476,10 @@ fn park_q(theta_e: f64, i_a: f64, i_b: f64) -> f64 {
 
 impl RunLog {
     /// A log from simulator rows (what `stepdamp simulate --log` or the planner would write),
-    /// without going through a file.
+    /// without going through a file; it keeps the phase signals of every run (the back-EMF
+    /// fit picks the runs fast enough for it).
     pub fn from_rows(rows: &[LogRow], source: &str) -> RunLog {
+        let col = |f: fn(&LogRow) -> f64| rows.iter().map(f).collect::<Vec<f64>>();
         RunLog {
             source: source.to_string(),
             t_s: rows.iter().map(|r| r.t_s).collect(),
@@ -445,6 +488,12 @@ impl RunLog {
             iq_cmd_a: Some(rows.iter().map(|r| r.iq_cmd_a).collect()),
             iq_source: IqSource::Column,
             ignored_columns: Vec::new(),
+            phases: Some(PhaseSignals {
+                i_a_a: col(|r| r.i_a_a),
+                i_b_a: col(|r| r.i_b_a),
+                v_a_v: col(|r| r.v_a_v),
+                v_b_v: col(|r| r.v_b_v),
+            }),
         }
     }
 

@@ -277,6 +277,7 @@ fn synthetic_log(speed: f64, model: &Model, noise_a: f64, seed: u64) -> RunLog {
         iq_cmd_a: None,
         iq_source: crate::log::IqSource::Column,
         ignored_columns: Vec::new(),
+        phases: None,
     };
     for i in 0..n {
         let t = i as f64 / 20e3;
@@ -506,6 +507,7 @@ fn constant_speed_log(speed: f64, n: usize) -> RunLog {
         iq_cmd_a: None,
         iq_source: crate::log::IqSource::Column,
         ignored_columns: Vec::new(),
+        phases: None,
     }
 }
 

@@ -150,6 +150,7 @@ mod warnings;
 pub use options::{Effort, FitOptions};
 pub use report::{FeedForwardCheck, FitReport};
 pub use result::{Estimate, Fit, FitError, FitSamples, HarmonicEstimate, RunSummary, polar_with_ci, wrap_pi};
+pub(crate) use thresholds::Z_95;
 pub use warnings::Warning;
 
 use crate::log::RunLog;

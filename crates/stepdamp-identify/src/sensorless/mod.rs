@@ -150,6 +150,7 @@ pub fn estimate(logs: &[SensorlessLog], w: &Winding, o: &FluxOptions) -> Result<
             iq_cmd_a: None,
             iq_source: IqSource::Park,
             ignored_columns: log.ignored_columns.clone(),
+            phases: None,
         });
     }
     Ok(Estimated { logs: out, angles, resistance_ohm, resistance_source, current_offset_a })
