@@ -238,6 +238,13 @@ pub enum Decision {
         /// Why.
         reason: String,
     },
+    /// Back-EMF runs ([`crate::emf::is_emf_run`]) left out of the torque fit: their
+    /// harmonics are far beyond the servo, their torque all `J·dω/dt`; they are for the
+    /// flux linkage ([`crate::emf`]).
+    BackEmfRunsLeftOut {
+        /// The runs' sources.
+        runs: Vec<String>,
+    },
 }
 
 impl std::fmt::Display for Decision {
@@ -254,6 +261,12 @@ impl std::fmt::Display for Decision {
             Decision::InertiaHeld { base, reason } => {
                 write!(f, "J held at the base profile's {base:.4e} kg·m²: {reason}")
             }
+            Decision::BackEmfRunsLeftOut { runs } => write!(
+                f,
+                "{}: back-EMF runs (at least {} Hz electrical), used for the flux linkage, not for the torque fit",
+                runs.join(", "),
+                crate::emf::EMF_MIN_ELECTRICAL_HZ
+            ),
         }
     }
 }

@@ -29,6 +29,9 @@
 //!    of steady running at the run's speed, at least [`PlanOptions::min_steady_s`], after a
 //!    50 ms standstill and a 0.1 s ramp. The fit averages whole periods; more periods
 //!    shrink the noise as `1/√periods`.
+//! 6. **A back-EMF run** ([`back_emf_run`]): one fast servo run whose logged voltages give
+//!    the flux linkage's odd harmonics and the phases' imbalance ([`crate::emf`]), the
+//!    ripple that grows with the current, which the slow runs at `i_d = 0` cannot see.
 
 use std::f64::consts::TAU;
 use std::path::PathBuf;
@@ -167,7 +170,7 @@ impl std::fmt::Display for Plan {
         }
         write!(
             f,
-            "total {:.1} s of logging; record t_s, theta_fb_rad, i_q_a (or i_a_a, i_b_a) every control period",
+            "total {:.1} s of logging; record t_s, theta_fb_rad, i_q_a (or i_a_a, i_b_a) every control period, and i_a_a, i_b_a, v_a_v, v_b_v in the back-EMF run (v: the mean winding voltage actually applied over the period)",
             self.total_s()
         )
     }
@@ -295,7 +298,8 @@ pub fn plan(base: &Profile, o: &PlanOptions) -> Result<Plan, PlanError> {
             speeds.f_k(speeds.w_hi)
         ));
     }
-    let runs = planned_runs(&speeds, fb, o);
+    let mut runs = planned_runs(&speeds, fb, o);
+    runs.push(back_emf_run(base, fb, runs.len() + 1));
     let profile = base
         .edited(&base.name, |p| {
             p.servo.bandwidth_hz = fb;
@@ -455,6 +459,47 @@ fn planned_runs(sp: &Speeds, fb: f64, o: &PlanOptions) -> Vec<PlannedRun> {
     runs
 }
 
+/// The highest flux harmonic of the back-EMF run ([`crate::emf::DEFAULT_FLUX_ORDERS`]) stays
+/// below the PWM frequency over this: 16 control periods per period of that harmonic.
+pub const EMF_PERIODS_PER_HARMONIC: f64 = 16.0;
+
+/// The back-EMF run's back-EMF stays below this fraction of the bus voltage (room for the
+/// current loop).
+pub const EMF_BUS_FRACTION: f64 = 0.3;
+
+/// Steady time of the back-EMF run, s (≈ 175 electrical periods for `patent-motor`).
+pub const EMF_STEADY_S: f64 = 1.0;
+
+/// The back-EMF run (rule 6 of the module documentation), numbered `index`: forward at the
+/// speed where the highest fitted flux harmonic has [`EMF_PERIODS_PER_HARMONIC`] control
+/// periods, or where the back-EMF reaches [`EMF_BUS_FRACTION`] of the bus, whichever is
+/// slower; a 0.2 s ramp and [`EMF_STEADY_S`] steady.
+pub fn back_emf_run(base: &Profile, fb: f64, index: usize) -> PlannedRun {
+    let nr = f64::from(base.motor.pole_pairs);
+    let nmax = f64::from(*crate::emf::DEFAULT_FLUX_ORDERS.iter().max().unwrap_or(&7));
+    let w_pwm = TAU * base.drive.pwm_hz / (EMF_PERIODS_PER_HARMONIC * nmax * nr);
+    let w_bus = EMF_BUS_FRACTION * base.drive.bus_voltage_v / base.motor.km_nm_per_a;
+    let w = (w_pwm.min(w_bus) * 1e3).floor() / 1e3;
+    let (dwell, ramp) = (0.05, 0.2);
+    let f_e = nr * w / TAU;
+    PlannedRun {
+        name: format!("run-{index}-emf-{w:.3}rad_s"),
+        drive: RunDrive::Servo { servo_bandwidth_hz: fb, velocity_filter_hz: fb, d_current_a: 0.0 },
+        speed_rad_s: w,
+        dwell_s: dwell,
+        ramp_s: ramp,
+        duration_s: dwell + ramp + 0.05 + EMF_STEADY_S,
+        reason: format!(
+            "back-EMF: log the phase currents and the applied voltages (i_a_a, i_b_a, v_a_v, v_b_v); their back-EMF gives the flux linkage's 3rd and 5th harmonics and the phases' imbalance, the ripple that grows with the current, which the slow runs at i_d = 0 cannot see; {f_e:.0} Hz electrical, harmonic {nmax} at {:.0} Hz = PWM/{:.0}, back-EMF {:.1} V = {:.0} % of the bus ({:.0} electrical periods in {EMF_STEADY_S} s steady)",
+            nmax * f_e,
+            base.drive.pwm_hz / (nmax * f_e),
+            base.motor.km_nm_per_a * w,
+            100.0 * base.motor.km_nm_per_a * w / base.drive.bus_voltage_v,
+            f_e * EMF_STEADY_S
+        ),
+    }
+}
+
 #[cfg(feature = "simulate")]
 pub use crate::simulate::{PlanRun, run_plan, run_seed, simulate_plan, simulate_run, write_rows_atomic};
 
@@ -466,8 +511,13 @@ mod tests {
     fn patent_motor_plan_runs_both_directions_at_two_speeds_with_reasons() {
         let p = Profile::preset("patent-motor").unwrap();
         let plan = plan(&p, &PlanOptions::default()).unwrap();
-        assert_eq!(plan.runs.len(), 4);
+        assert_eq!(plan.runs.len(), 5);
         let speeds: Vec<f64> = plan.runs.iter().map(|r| r.speed_rad_s).collect();
+        // The back-EMF run last: 7th flux harmonic at PWM/16 = 1250 Hz, 25 rad/s electrical
+        // 178.5 Hz → 22.439 rad/s mechanical (Nr 50); back-EMF 6.7 V, under 30 % of 48 V.
+        let emf = &plan.runs[4];
+        assert!((emf.speed_rad_s - 22.439).abs() < 1e-9 && emf.name == "run-5-emf-22.439rad_s", "{emf:?}");
+        assert!(emf.reason.contains("back-EMF") && emf.reason.contains("v_a_v"), "{}", emf.reason);
         assert!(speeds[0] > 0.0 && speeds[1] < 0.0 && (speeds[2] / speeds[0] - 2.0).abs() < 1e-12);
         // Stiffness margin: J ω_b² ≥ 2 S.
         let wb = TAU * plan.servo_bandwidth_hz;
@@ -475,12 +525,13 @@ mod tests {
         // Count rate of the slow run = ω_b.
         let rate = speeds[0] * 4000.0 / TAU;
         assert!((rate - wb).abs() < 1e-6 * wb);
-        assert!(plan.runs.iter().all(|r| !r.reason.is_empty() && r.duration_s > 2.0));
+        assert!(plan.runs[..4].iter().all(|r| !r.reason.is_empty() && r.duration_s > 2.0));
+        assert!((emf.duration_s - 1.3).abs() < 1e-12);
         let text = plan.to_string();
         assert!(text.contains("why") && text.contains("run-4-rev"), "{text}");
         assert!(
             text.ends_with(&format!(
-                "total {:.1} s of logging; record t_s, theta_fb_rad, i_q_a (or i_a_a, i_b_a) every control period",
+                "total {:.1} s of logging; record t_s, theta_fb_rad, i_q_a (or i_a_a, i_b_a) every control period, and i_a_a, i_b_a, v_a_v, v_b_v in the back-EMF run (v: the mean winding voltage actually applied over the period)",
                 plan.total_s()
             )),
             "{text}"

@@ -175,7 +175,15 @@ pub fn fit(logs: &[RunLog], o: &FitOptions) -> Result<Fit, FitError> {
         return Err(FitError::NoLogs);
     }
     let kmax = *o.orders.iter().max().expect("checked non-empty");
-    let mut prepared = logs.iter().map(|l| prepare(l, o, kmax)).collect::<Result<Vec<_>, _>>()?;
+    // Back-EMF runs are for the flux linkage (crate::emf), unless there is nothing else.
+    let emf = |l: &&RunLog| crate::emf::is_emf_run(l, o.pole_pairs);
+    let back_emf: Vec<String> = logs.iter().filter(emf).map(|l| l.source.clone()).collect();
+    let left_out_emf = back_emf.len() < logs.len() && !back_emf.is_empty();
+    let mut prepared = logs
+        .iter()
+        .filter(|l| !(left_out_emf && emf(l)))
+        .map(|l| prepare(l, o, kmax))
+        .collect::<Result<Vec<_>, _>>()?;
     // Hook (crate::conditions): slow runs short of friction are left out.
     let speeds: Vec<f64> = prepared.iter().map(|p| p.speed).collect();
     let held = FitOptions { fit_inertia: false, ..o.clone() };
@@ -227,6 +235,9 @@ pub fn fit(logs: &[RunLog], o: &FitOptions) -> Result<Fit, FitError> {
         }
     };
     f.warnings.splice(0..0, condition.into_iter().chain(motion));
+    if left_out_emf {
+        f.decisions.push(crate::conditions::Decision::BackEmfRunsLeftOut { runs: back_emf });
+    }
     f.decisions.push(decision);
     Ok(f)
 }

@@ -19,6 +19,10 @@ pub struct FitReport {
     /// For logs recorded with a feed-forward running (`identify --ff-on`): what is left.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub feed_forward: Option<FeedForwardCheck>,
+    /// The flux linkage's shape from the logs' back-EMF runs ([`crate::emf`]), when there
+    /// were any: the detent above was fitted with it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub flux: Option<crate::emf::FluxFit>,
 }
 
 /// What logs recorded with a detent feed-forward running tell (`identify --ff-on`, the
@@ -64,7 +68,13 @@ impl FitReport {
     /// The report of `fit`, validated up to [`default_max_order`].
     pub fn new(base: &str, fit: Fit) -> Self {
         let validation = validate(&fit, default_max_order(&fit));
-        FitReport { base: base.to_string(), fit, validation, feed_forward: None }
+        FitReport { base: base.to_string(), fit, validation, feed_forward: None, flux: None }
+    }
+
+    /// The report with the flux section fitted to the back-EMF runs.
+    pub fn with_flux(mut self, flux: Option<crate::emf::FluxFit>) -> Self {
+        self.flux = flux;
+        self
     }
 
     /// The report with the feed-forward check of `--ff-on` logs.
@@ -134,6 +144,9 @@ impl fmt::Display for FitReport {
         write!(s, "validation (orders 1–{}):\n{}", self.validation.max_order, self.validation)?;
         if let Some(c) = &self.feed_forward {
             write!(s, "\n{c}")?;
+        }
+        if let Some(flux) = &self.flux {
+            write!(s, "\n{}", flux.to_string().trim_end())?;
         }
         Ok(())
     }

@@ -13,6 +13,7 @@ mod read;
 pub use read::{LogSource, LogSummary, Logs, Route, STDIN_NAME, read_logs};
 
 use crate::conditions::InertiaMode;
+use crate::emf::{EmfError, EmfOptions, FluxFit, fit_flux};
 use crate::fit::{Effort, FeedForwardCheck, Fit, FitError, FitOptions, FitReport, fit};
 use crate::log::LogError;
 use crate::model::Model;
@@ -158,6 +159,9 @@ pub enum IdentifyError {
     /// The sensorless route failed.
     #[error(transparent)]
     Sensorless(#[from] SensorlessError),
+    /// The back-EMF fit of the flux linkage failed.
+    #[error(transparent)]
+    Emf(#[from] EmfError),
     /// The identified profile is not valid.
     #[error(transparent)]
     Profile(#[from] ProfileError),
@@ -270,33 +274,48 @@ pub fn identify(
     let read_s = t0.elapsed().as_secs_f64();
     let summaries = logs.summaries();
     let name = o.name.clone().unwrap_or_else(|| format!("{}-{DEFAULT_NAME_SUFFIX}", base.name));
-    let (result, model, current_offset_a) = match &logs {
+    let (result, model, with_flux, current_offset_a) = match &logs {
         Logs::Encoder(l) => {
-            let shaped = with_flux_torque(l, base);
-            let f = fit(shaped.as_deref().unwrap_or(l), &o.encoder_fit_options(base))?;
+            let (flux, with_flux) = flux_from_back_emf(l, base)?;
+            let base_used = with_flux.as_ref().unwrap_or(base);
+            let shaped = with_flux_torque(l, base_used);
+            let f = fit(shaped.as_deref().unwrap_or(l), &o.encoder_fit_options(base_used))?;
             let model = Model::from_fit(&f);
-            let mut report = FitReport::new(&base.name, f);
+            let mut report = FitReport::new(&base.name, f).with_flux(flux);
             if o.feed_forward_on {
                 let check = FeedForwardCheck::new(base, &report.fit);
                 report = report.with_feed_forward(check);
             }
-            (RouteReport::Encoder(report), model, None)
+            (RouteReport::Encoder(report), model, with_flux, None)
         }
         Logs::Sensorless(l) => {
             o.check_sensorless()?;
             let fo = FitOptions { inertia: o.inertia, ..sensorless_fit_options(base, &o.orders) };
             let sf = identify_sensorless(l, base, &fo, &FluxOptions::default())?;
             let report = SensorlessReport::new(&base.name, base.motor.resistance_ohm, base.motor.km_nm_per_a, &sf);
-            (RouteReport::Sensorless(report), sf.model(), Some(sf.estimated.current_offset_a))
+            (RouteReport::Sensorless(report), sf.model(), None, Some(sf.estimated.current_offset_a))
         }
     };
     let fit_s = t0.elapsed().as_secs_f64() - read_s;
-    let profile = model.apply_to(base, Some(&name), &o.destination)?;
+    let profile = model.apply_to(with_flux.as_ref().unwrap_or(base), Some(&name), &o.destination)?;
     Ok(IdentifyReport { route: logs.route(), logs: summaries, result, current_offset_a, profile, read_s, fit_s })
 }
 
 #[cfg(test)]
 mod tests;
+
+/// The flux section from the back-EMF runs among `logs` ([`crate::emf`]; the torque fit
+/// leaves those runs out) and the base with that section; `(None, None)` without such runs.
+fn flux_from_back_emf(
+    logs: &[crate::log::RunLog],
+    base: &Profile,
+) -> Result<(Option<FluxFit>, Option<Profile>), IdentifyError> {
+    let Some(flux) = fit_flux(logs, &EmfOptions::for_profile(base))? else {
+        return Ok((None, None));
+    };
+    let with_flux = base.edited(&base.name, |d| d.motor.flux = flux.section())?;
+    Ok((Some(flux), Some(with_flux)))
+}
 
 /// Encoder logs of a motor whose base has a `[motor.flux]` section, with each `i_q` (and
 /// `iq_cmd`) replaced by the torque per `Km` the flux shape gives at the encoder angle with
