@@ -34,10 +34,7 @@ fn the_back_emf_of_a_fast_servo_run_gives_the_flux_harmonics_and_the_phase_imbal
     println!("{f}");
     let truth = &motor.motor.flux;
     assert!((f.phase_b_gain.value - truth.phase_b_gain).abs() < 0.002, "{:?}", f.phase_b_gain);
-    // Measured +1.3 % (and −1.1 to +1.8 % at 10–40 rad/s on patent-motor, also without
-    // current noise): a bias of the fundamental not explained yet; the harmonics are ratios
-    // to it, and g a ratio of the two phases', so it cancels from them.
-    assert!((f.km_nm_per_a.value / 0.3 - 1.0).abs() < 0.03, "{:?}", f.km_nm_per_a);
+    assert!((f.km_nm_per_a.value / 0.3 - 1.0).abs() < 0.005, "{:?}", f.km_nm_per_a);
     for t in &truth.harmonics {
         let h = f.harmonics.iter().find(|h| h.order == t.order).unwrap();
         // Within 5 % of the ratio (or 2e-4 absolute) and 0.1 rad (measured: third 1.4 % low,

@@ -276,16 +276,7 @@ pub fn identify(
     let name = o.name.clone().unwrap_or_else(|| format!("{}-{DEFAULT_NAME_SUFFIX}", base.name));
     let (result, model, with_flux, current_offset_a) = match &logs {
         Logs::Encoder(l) => {
-            let (flux, with_flux) = flux_from_back_emf(l, base)?;
-            let base_used = with_flux.as_ref().unwrap_or(base);
-            let shaped = with_flux_torque(l, base_used);
-            let f = fit(shaped.as_deref().unwrap_or(l), &o.encoder_fit_options(base_used))?;
-            let model = Model::from_fit(&f);
-            let mut report = FitReport::new(&base.name, f).with_flux(flux);
-            if o.feed_forward_on {
-                let check = FeedForwardCheck::new(base, &report.fit);
-                report = report.with_feed_forward(check);
-            }
+            let (report, model, with_flux) = encoder_route(l, base, o)?;
             (RouteReport::Encoder(report), model, with_flux, None)
         }
         Logs::Sensorless(l) => {
@@ -303,6 +294,27 @@ pub fn identify(
 
 #[cfg(test)]
 mod tests;
+
+/// The encoder route on logs already read: the flux section from the back-EMF runs, if any
+/// ([`crate::emf`]), then the torque fit with that shape; returns the report, the model and
+/// the base with the identified flux section (`None` without back-EMF runs).
+pub fn encoder_route(
+    logs: &[crate::log::RunLog],
+    base: &Profile,
+    o: &IdentifyOptions,
+) -> Result<(FitReport, Model, Option<Profile>), IdentifyError> {
+    let (flux, with_flux) = flux_from_back_emf(logs, base)?;
+    let base_used = with_flux.as_ref().unwrap_or(base);
+    let shaped = with_flux_torque(logs, base_used);
+    let f = fit(shaped.as_deref().unwrap_or(logs), &o.encoder_fit_options(base_used))?;
+    let model = Model::from_fit(&f);
+    let mut report = FitReport::new(&base.name, f).with_flux(flux);
+    if o.feed_forward_on {
+        let check = FeedForwardCheck::new(base, &report.fit);
+        report = report.with_feed_forward(check);
+    }
+    Ok((report, model, with_flux))
+}
 
 /// The flux section from the back-EMF runs among `logs` ([`crate::emf`]; the torque fit
 /// leaves those runs out) and the base with that section; `(None, None)` without such runs.
