@@ -6,7 +6,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 use stepdamp_identify::conditions::InertiaMode;
-use stepdamp_identify::fit::{FeedForwardCheck, FitOptions, FitReport, fit};
+use stepdamp_identify::fit::FitOptions;
+use stepdamp_identify::from_logs::{IdentifyOptions, encoder_route};
 use stepdamp_identify::log::{LogOptions, read_log};
 use stepdamp_identify::plan::{PlanOptions, plan};
 use stepdamp_identify::validation::{default_max_order, validate};
@@ -39,9 +40,8 @@ fn library_lines(csv: &[PathBuf], base: &Path, mode: InertiaMode) -> (Vec<String
     let base = Profile::from_file(base).unwrap();
     let opts = LogOptions::new(base.motor.pole_pairs);
     let logs: Vec<_> = csv.iter().map(|p| read_log(p, &opts).unwrap()).collect();
-    let mut fo = FitOptions::for_profile(&base, &[1, 2, 4]);
-    fo.inertia = mode;
-    let f = fit(&logs, &fo).unwrap();
+    let o = IdentifyOptions { inertia: mode, ..IdentifyOptions::new(&[1, 2, 4]) };
+    let f = encoder_route(&logs, &base, &o).unwrap().0.fit;
     let decisions = f.decisions.iter().map(ToString::to_string).collect();
     (decisions, validate(&f, default_max_order(&f)).to_string())
 }
@@ -123,8 +123,8 @@ fn identify_format_json_is_the_library_fit_report_alone() {
     let profile = Profile::from_file(&base).unwrap();
     let opts = LogOptions::new(profile.motor.pole_pairs);
     let logs: Vec<_> = csv.iter().map(|p| read_log(p, &opts).unwrap()).collect();
-    let f = fit(&logs, &FitOptions::for_profile(&profile, &[1, 2, 4])).unwrap();
-    let want = serde_json::to_value(FitReport::new(&profile.name, f)).unwrap();
+    let report = encoder_route(&logs, &profile, &IdentifyOptions::new(&[1, 2, 4])).unwrap().0;
+    let want = serde_json::to_value(report).unwrap();
     assert_close(&got, &want);
 }
 
@@ -150,13 +150,10 @@ fn identify_ff_on_json_carries_the_library_feed_forward_check() {
     let profile = Profile::from_file(&base).unwrap();
     let opts = LogOptions::new(profile.motor.pole_pairs);
     let logs: Vec<_> = csv.iter().map(|p| read_log(p, &opts).unwrap()).collect();
-    let mut fo = FitOptions::for_profile(&profile, &[1, 2, 4]);
-    fo.correct_quantisation = false;
-    fo.smooth_effort = false;
-    fo.fit_inertia = false;
-    let f = fit(&logs, &fo).unwrap();
-    let check = FeedForwardCheck::new(&profile, &f);
-    let want = serde_json::to_value(FitReport::new(&profile.name, f).with_feed_forward(check)).unwrap();
+    let o = IdentifyOptions { feed_forward_on: true, ..IdentifyOptions::new(&[1, 2, 4]) };
+    let report = encoder_route(&logs, &profile, &o).unwrap().0;
+    assert!(report.feed_forward.is_some());
+    let want = serde_json::to_value(report).unwrap();
     assert_close(&got, &want);
 }
 
@@ -253,11 +250,12 @@ fn identify_run_refine_json_is_the_library_run_report_and_the_summary_its_rows()
     let opts = LogOptions::new(motor.motor.pole_pairs);
     let logs: Vec<_> = files.iter().map(|f| read_log(f, &opts).unwrap()).collect();
     let fo = FitOptions::for_profile(&p.profile, &[1, 2, 4]);
-    let f0 = fit(&logs, &fo).unwrap();
+    let report = encoder_route(&logs, &p.profile, &IdentifyOptions::new(&[1, 2, 4])).unwrap().0;
+    let f0 = report.fit.clone();
     let ro = RefineOptions { max_iterations: 1, ..RefineOptions::default() };
     let r = refine(&motor, &p, &Model::from_fit(&f0), Some(&f0), &fo, &ro, &|| {}).unwrap();
     let refinement = RefinementReport::new(&motor, &f0, &r);
-    let want = RunReport { plan: p, fit: Some(FitReport::new(&motor.name, f0)), refinement: Some(refinement) };
+    let want = RunReport { plan: p, fit: Some(report), refinement: Some(refinement) };
     assert_close(&got, &serde_json::to_value(&want).unwrap());
 
     // refine-summary.csv holds the report's summary rows.

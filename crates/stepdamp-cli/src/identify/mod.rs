@@ -130,7 +130,9 @@ mod tests {
             .filter(|p| p.ends_with(".csv"))
             .collect();
         logs.sort();
-        assert_eq!(logs.len(), 4);
+        // The four servo runs and the back-EMF run.
+        assert_eq!(logs.len(), 5);
+        assert!(logs[4].contains("run-5-emf-"), "{logs:?}");
         // The planned profile, with the servo settings the runs were recorded with.
         let base = dir.path().join("base.toml");
         let planned = Profile::from_file(&base).unwrap();
