@@ -12,6 +12,8 @@
 //! - [`influence`]: the complex response of one harmonic in the constant-speed window with a
 //!   95 % interval, the influence coefficient of a known trial correction, the correction that
 //!   cancels the response, and the next step of an iteration.
+//! - [`head`]: the pulley, belt and carriage ([`HeadModel`]) and the rotor held in open loop
+//!   ([`AxisModel`]): the head's acceleration per ripple torque.
 //! - [`plan`]: the captures to record for an influence step, as G-code with the reasons.
 //! - [`refine`]: one influence step from a session's captures, per harmonic and direction,
 //!   added to the table in use.
@@ -21,6 +23,7 @@
 
 pub mod capture;
 mod complex;
+pub mod head;
 pub mod influence;
 pub mod plan;
 pub mod prusa;
@@ -29,5 +32,6 @@ mod timeline;
 pub mod timing;
 
 pub use capture::{AccelCapture, Annotations, Axis, CaptureError, Commanded, Gcode, Reconstruction, TrialSweep};
+pub use head::{AxisModel, HeadError, HeadModel};
 pub use influence::{Complex, Influence, InfluenceError, Next, Response, Step, StopReason};
 pub use prusa::{ReadError, read_captures};
