@@ -14,6 +14,7 @@
 //!   cancels the response, and the next step of an iteration.
 //! - [`head`]: the pulley, belt and carriage ([`HeadModel`]) and the rotor held in open loop
 //!   ([`AxisModel`]): the head's acceleration per ripple torque.
+//! - [`lockin`]: the same lock-in on short blocks along a speed sweep, each at its speed.
 //! - [`plan`]: the captures to record for an influence step, as G-code with the reasons.
 //! - [`refine`]: one influence step from a session's captures, per harmonic and direction,
 //!   added to the table in use.
@@ -25,6 +26,7 @@ pub mod capture;
 mod complex;
 pub mod head;
 pub mod influence;
+pub mod lockin;
 pub mod plan;
 pub mod prusa;
 pub mod refine;
