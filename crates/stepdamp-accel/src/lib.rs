@@ -18,6 +18,8 @@
 //! - [`plan`]: the captures to record for an influence step, as G-code with the reasons.
 //! - [`refine`]: one influence step from a session's captures, per harmonic and direction,
 //!   added to the table in use.
+//! - [`ripple`]: the head and the motor's ripple in N·m from a speed sweep, with intervals
+//!   and a validation.
 //! - [`timing`]: an estimate of when the first sample was taken, from the two marker moves.
 //!
 //! Formats, equations and sign conventions: `docs/accelerometer.md#accelerometer-captures`.
@@ -30,6 +32,7 @@ pub mod lockin;
 pub mod plan;
 pub mod prusa;
 pub mod refine;
+pub mod ripple;
 mod timeline;
 pub mod timing;
 
