@@ -330,7 +330,7 @@ fn collect(captures: &[AccelCapture], r: &Reconstruction, o: &RippleOptions) -> 
                 "no capture in this direction".to_string()
             } else {
                 format!(
-                    "{n} block(s) below {:.0} % of the sampling rate (fewer than {MIN_BLOCKS}): order {k} needs speeds up to {limit:.2} rev/s",
+                    "{n} block(s) below {:.0} % of the sampling rate (fewer than {MIN_BLOCKS}): order {k} needs speeds at or below {limit:.2} rev/s",
                     100.0 * o.band_fraction
                 )
             };
