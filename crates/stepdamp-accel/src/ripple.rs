@@ -178,7 +178,12 @@ pub struct NotIdentified {
     pub order: u32,
     /// The direction.
     pub direction: Direction,
-    /// Why.
+    /// Its lock-in blocks in band (fewer than [`MIN_BLOCKS`]).
+    pub blocks: usize,
+    /// The fastest speed (rev/s) that puts it in band, `band_fraction·f_s/(k·Nr)`; `None` when
+    /// no capture ran in this direction.
+    pub band_limit_rev_s: Option<f64>,
+    /// Why, in words.
     pub reason: String,
 }
 
@@ -326,15 +331,15 @@ fn collect(captures: &[AccelCapture], r: &Reconstruction, o: &RippleOptions) -> 
             }
             let limit = o.band_fraction * captures.first().map_or(0.0, |c| c.annotations.sampling_freq_hz)
                 / (f64::from(k) * f64::from(o.periods_per_rev));
-            let reason = if fastest[dir as usize] == 0.0 {
-                "no capture in this direction".to_string()
-            } else {
-                format!(
-                    "{n} block(s) below {:.0} % of the sampling rate (fewer than {MIN_BLOCKS}): order {k} needs speeds at or below {limit:.2} rev/s",
+            let band_limit_rev_s = (fastest[dir as usize] > 0.0).then_some(limit);
+            let reason = match band_limit_rev_s {
+                None => "no capture in this direction".to_string(),
+                Some(_) => format!(
+                    "{n} block(s) in band (fewer than {MIN_BLOCKS}): order {k} is below {:.0} % of the sampling rate at or below {limit:.2} rev/s",
                     100.0 * o.band_fraction
-                )
+                ),
             };
-            missing.push(NotIdentified { order: k, direction: dir, reason });
+            missing.push(NotIdentified { order: k, direction: dir, blocks: n, band_limit_rev_s, reason });
         }
     }
     for ((key, mut v), index) in by_group.into_iter().filter(|(_, v)| v.len() >= MIN_BLOCKS).zip(0..) {
@@ -504,8 +509,27 @@ impl fmt::Display for RippleFit {
                 100.0 * x.explained_share
             )?;
         }
-        for x in &self.not_identified {
-            writeln!(f, "  {:<8} k={:>2}: not identified: {}", x.direction.name(), x.order, x.reason)?;
+        // Runs of orders left out alike, one line each.
+        let alike = |a: &NotIdentified, b: &NotIdentified| {
+            a.direction == b.direction
+                && a.blocks == b.blocks
+                && a.band_limit_rev_s.is_some() == b.band_limit_rev_s.is_some()
+        };
+        for run in self.not_identified.chunk_by(alike) {
+            let (first, last) = (&run[0], &run[run.len() - 1]);
+            let orders = if run.len() == 1 {
+                format!("k={}", first.order)
+            } else {
+                format!("k={}–{}", first.order, last.order)
+            };
+            let why = match (first.band_limit_rev_s, last.band_limit_rev_s) {
+                (Some(a), Some(b)) if run.len() > 1 => format!(
+                    "{} block(s) in band each (fewer than {MIN_BLOCKS}): they need speeds at or below {a:.2}…{b:.2} rev/s",
+                    first.blocks
+                ),
+                _ => first.reason.clone(),
+            };
+            writeln!(f, "  {:<8} {orders}: not identified: {why}", first.direction.name())?;
         }
         write!(
             f,
@@ -516,3 +540,6 @@ impl fmt::Display for RippleFit {
         )
     }
 }
+
+#[cfg(test)]
+mod tests;
