@@ -148,6 +148,9 @@ pub struct IdentifiedHead {
     /// `viscous_nm_s_per_rad` leaves out; it sets the response's phase near the rotor's
     /// resonance.
     pub rotor_damping_nm_s_per_rad: Interval95,
+    /// How late (s) the drive applies a shift of the commanded angle (an `M973` trial): its
+    /// computation and current loop; fitted from the trials' phase.
+    pub shift_delay_s: Interval95,
 }
 
 /// One order's ripple in one direction, at the run current.
@@ -442,6 +445,10 @@ fn head_of(sol: &fit::Solution, o: &RippleOptions) -> Result<IdentifiedHead, Rip
         belt_damping_ratio: z,
         belt_stiffness_n_per_m: m.value * wb.value * wb.value,
         rotor_damping_nm_s_per_rad: c,
+        shift_delay_s: {
+            let (v, s) = (sol.x[4] * fit::DELAY_UNIT_S, sol.covariance[4][4].max(0.0).sqrt() * fit::DELAY_UNIT_S);
+            Interval95 { value: v, low: v - Z95 * s, high: v + Z95 * s }
+        },
     })
 }
 
@@ -493,6 +500,7 @@ impl fmt::Display for RippleFit {
         writeln!(f, "  belt damping ratio {}", iv(h.belt_damping_ratio, 1.0, 3))?;
         writeln!(f, "  belt stiffness     {:.3e} N/m", h.belt_stiffness_n_per_m)?;
         writeln!(f, "  rotor damping c    {} ×1e-3 N·m·s/rad", iv(h.rotor_damping_nm_s_per_rad, 1e3, 3))?;
+        writeln!(f, "  shift delay        {} µs", iv(h.shift_delay_s, 1e6, 1))?;
         writeln!(f, "ripple at the run current, torque on the rotor −A·sin(k·θe + φ):")?;
         for x in &self.harmonics {
             writeln!(

@@ -34,10 +34,13 @@ pub(super) struct Fixed {
     pub viscous: f64,
 }
 
-/// The nonlinear unknowns: `ln J_t`, `ln ω_b`, `ln ζ`, `ln c`.
-pub(super) const NL: usize = 4;
+/// The nonlinear unknowns: `ln J_t`, `ln ω_b`, `ln ζ`, `ln c`, and the delay `τ` of the
+/// commanded angle's shift (in [`DELAY_UNIT_S`]).
+pub(super) const NL: usize = 5;
+/// The unit of the delay unknown `x[4]` (s).
+pub(super) const DELAY_UNIT_S: f64 = 1e-4;
 
-/// The fitted unknowns: `[ln J_t, ln ω_b, ln ζ, ln c]`, then `Re T, Im T` per group.
+/// The fitted unknowns: `[ln J_t, ln ω_b, ln ζ, ln c, τ]`, then `Re T, Im T` per group.
 pub(super) struct Solution {
     pub x: Vec<f64>,
     /// `σ²·(JᵀWJ)⁻¹`.
@@ -49,23 +52,24 @@ pub(super) struct Solution {
 
 /// The head's response per torque against the commanded angle:
 /// `AxisModel::acceleration_per_torque` written on the fitted unknowns.
-fn gain(f: &Fixed, p: &Point, nl: [f64; NL]) -> Complex {
-    gain_linear(f, p, nl.map(f64::exp))
+fn gain(f: &Fixed, p: &Point, nl: &[f64]) -> Complex {
+    gain_linear(f, p, [nl[0].exp(), nl[1].exp(), nl[2].exp(), nl[3].exp()])
 }
 
 /// [`gain`] at `[J_t, ω_b, ζ, c]` themselves.
-fn gain_linear(f: &Fixed, p: &Point, [j, wb, z, c]: [f64; NL]) -> Complex {
+fn gain_linear(f: &Fixed, p: &Point, [j, wb, z, c]: [f64; 4]) -> Complex {
     let rotor = Complex::new(-p.w * p.w, 0.0) / Complex::new(p.stiffness - j * p.w * p.w, c * p.w);
     belt_transfer(f.radius_m, wb, z, p.w) * rotor
 }
 
-/// The prediction `G·(e^{ikλ}·T + known)`.
-fn predict(g: Complex, p: &Point, t: Complex) -> Complex {
-    g * (p.lag * t + p.known)
+/// The prediction `G·(e^{ikλ}·T + known·e^{−iwτ})`: the drive applies the commanded
+/// angle's shift `τ` (s) late (its computation and current loop), the ripple acts at once.
+fn predict(g: Complex, p: &Point, t: Complex, delay_s: f64) -> Complex {
+    g * (p.lag * t + p.known * Complex::from_polar(1.0, -p.w * delay_s))
 }
 
 /// The ripple phasors that fit best at `[J_t, ω_b, ζ]`, and the residual.
-fn project(f: &Fixed, pts: &[Point], groups: usize, linear: [f64; NL]) -> (Vec<Complex>, f64) {
+fn project(f: &Fixed, pts: &[Point], groups: usize, linear: [f64; 4]) -> (Vec<Complex>, f64) {
     let mut num = vec![Complex::default(); groups];
     let mut den = vec![0.0; groups];
     let mut yy = 0.0;
@@ -83,12 +87,12 @@ fn project(f: &Fixed, pts: &[Point], groups: usize, linear: [f64; NL]) -> (Vec<C
 
 /// The best node of a grid over `J_t` in `j_range` (kg·m²), `ω_b` over 40–2000 Hz and `ζ`,
 /// with `c` the base profile's.
-fn grid_start(f: &Fixed, pts: &[Point], groups: usize, j_range: (f64, f64)) -> [f64; NL] {
+fn grid_start(f: &Fixed, pts: &[Point], groups: usize, j_range: (f64, f64)) -> [f64; 4] {
     let logspace = |a: f64, b: f64, n: usize| -> Vec<f64> {
         (0..n).map(|i| (a.ln() + (b.ln() - a.ln()) * i as f64 / (n - 1) as f64).exp()).collect()
     };
     let tau = std::f64::consts::TAU;
-    let mut best = (f64::INFINITY, [0.0; NL]);
+    let mut best = (f64::INFINITY, [0.0; 4]);
     for &j in &logspace(j_range.0, j_range.1, 24) {
         for &wb in &logspace(tau * 40.0, tau * 2000.0, 48) {
             for &z in &logspace(0.02, 0.5, 6) {
@@ -104,11 +108,11 @@ fn grid_start(f: &Fixed, pts: &[Point], groups: usize, j_range: (f64, f64)) -> [
 
 /// The weighted residuals `√w·(y − ŷ)` (re, im per point) at `x`.
 fn residuals(f: &Fixed, pts: &[Point], x: &[f64]) -> Vec<f64> {
-    let nl = [x[0], x[1], x[2], x[3]];
+    let nl = &x[..NL];
     let mut r = Vec::with_capacity(2 * pts.len());
     for p in pts {
         let t = Complex::new(x[NL + 2 * p.group], x[NL + 1 + 2 * p.group]);
-        let e = (p.y - predict(gain(f, p, nl), p, t)).scale(p.weight.sqrt());
+        let e = (p.y - predict(gain(f, p, nl), p, t, nl[4] * DELAY_UNIT_S)).scale(p.weight.sqrt());
         r.extend([e.re, e.im]);
     }
     r
@@ -128,7 +132,7 @@ fn jacobian(f: &Fixed, pts: &[Point], x: &[f64]) -> Vec<Vec<f64>> {
             row[k] = (ra - rb) / (2.0 * h);
         }
     }
-    let nl = [x[0], x[1], x[2], x[3]];
+    let nl = &x[..NL];
     for (i, p) in pts.iter().enumerate() {
         let g = (gain(f, p, nl) * p.lag).scale(-p.weight.sqrt());
         let c = NL + 2 * p.group;
@@ -198,6 +202,7 @@ pub(super) fn solve(f: &Fixed, pts: &[Point], groups: usize, j_range: (f64, f64)
     let start = grid_start(f, pts, groups, j_range);
     let (t, _) = project(f, pts, groups, start);
     let mut x: Vec<f64> = start.map(f64::ln).to_vec();
+    x.push(0.0);
     x.extend(t.iter().flat_map(|c| [c.re, c.im]));
     let sum = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>();
     let mut s = sum(&residuals(f, pts, &x));

@@ -95,6 +95,8 @@ struct HeadSection {
     belt_stiffness_n_per_m: f64,
     rotor_damping_nm_s_per_rad: f64,
     rotor_damping_95_nm_s_per_rad: [f64; 2],
+    shift_delay_s: f64,
+    shift_delay_95_s: [f64; 2],
 }
 
 #[derive(Serialize)]
@@ -145,6 +147,8 @@ impl IdentifiedFile {
                 belt_stiffness_n_per_m: h.belt_stiffness_n_per_m,
                 rotor_damping_nm_s_per_rad: h.rotor_damping_nm_s_per_rad.value,
                 rotor_damping_95_nm_s_per_rad: pair(h.rotor_damping_nm_s_per_rad),
+                shift_delay_s: h.shift_delay_s.value,
+                shift_delay_95_s: pair(h.shift_delay_s),
             },
             ripple: f
                 .harmonics
@@ -191,13 +195,13 @@ mod tests {
         W::try_parse_from(std::iter::once("identify").chain(v.iter().copied())).unwrap().a
     }
 
-    /// The plan's captures on the simulated printer at 0.9 A: an M973 H4 pair at 2 rev/s per
+    /// The plan's captures on the simulated printer at 0.9 A: an M973 H4 pair (C0, C0.03) at 2 rev/s per
     /// direction and, with `sweeps`, an M974 A2 B4 R±8 per direction, in one session log.
     fn session(dir: &std::path::Path, sweeps: bool) -> String {
         let p = SimulatedPrinter::new(stepdamp_sim::Profile::from_file(std::path::Path::new(MOTOR)).unwrap(), 0.9);
         let mut g: Vec<Gcode> = Vec::new();
         for revs in [-6.0, 6.0] {
-            for mag in [0.0, 0.01] {
+            for mag in [0.0, 0.03] {
                 let trial = TrialSweep { harmonic: 4, pha_start: 0.0, pha_end: 0.0, mag_start: mag, mag_end: mag };
                 g.push(Gcode::ParamSweep { axis: Axis::X, speed: 2.0, revs, trial });
             }
