@@ -68,19 +68,7 @@ pub fn harmonic_response(
     harmonic: u32,
     periods_per_block: u32,
 ) -> Result<Response, CaptureError> {
-    if harmonic == 0 || periods_per_block == 0 {
-        let value = format!("{harmonic}, {periods_per_block}");
-        return Err(CaptureError::Parameter {
-            what: "harmonic, periods_per_block", value, allowed: "both ≥ 1".into()
-        });
-    }
-    if !c.annotations.is_valid() {
-        let a = c.annotations;
-        return Err(c.unusable(format!(
-            "not a valid capture (movement_ok {}, accel_error {}, sampling_freq {}): the firmware discards it too",
-            a.movement_ok, a.accel_error, a.sampling_freq_hz
-        )));
-    }
+    check_lockin(c, harmonic, periods_per_block)?;
     let g = c.require_gcode()?;
     let Gcode::ParamSweep { speed, .. } = g else {
         return Err(c.unusable(format!("`{g}` sweeps the speed: no constant-speed window")));
@@ -126,6 +114,25 @@ pub fn harmonic_response(
         periods_per_block,
         speed_rev_s: g.phase_direction() * speed,
     })
+}
+
+/// Refuses a harmonic or block length of 0 and a capture the firmware itself discards
+/// ([`crate::Annotations::is_valid`]): what every lock-in checks first.
+pub(crate) fn check_lockin(c: &AccelCapture, harmonic: u32, periods_per_block: u32) -> Result<(), CaptureError> {
+    if harmonic == 0 || periods_per_block == 0 {
+        let value = format!("{harmonic}, {periods_per_block}");
+        return Err(CaptureError::Parameter {
+            what: "harmonic, periods_per_block", value, allowed: "both ≥ 1".into()
+        });
+    }
+    if !c.annotations.is_valid() {
+        let a = c.annotations;
+        return Err(c.unusable(format!(
+            "not a valid capture (movement_ok {}, accel_error {}, sampling_freq {}): the firmware discards it too",
+            a.movement_ok, a.accel_error, a.sampling_freq_hz
+        )));
+    }
+    Ok(())
 }
 
 /// The normal equations of `[1, sin nθ, cos nθ]` (upper triangle, then the right-hand side)

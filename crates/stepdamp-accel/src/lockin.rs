@@ -7,7 +7,7 @@
 
 use crate::Reconstruction;
 use crate::capture::{AccelCapture, CaptureError};
-use crate::influence::{Complex, accumulate, solve_block};
+use crate::influence::{Complex, accumulate, check_lockin, solve_block};
 use std::f64::consts::TAU;
 
 /// One block's estimate of a harmonic's response.
@@ -39,17 +39,7 @@ pub fn block_responses(
     harmonic: u32,
     periods_per_block: u32,
 ) -> Result<Vec<BlockResponse>, CaptureError> {
-    if harmonic == 0 || periods_per_block == 0 {
-        let value = format!("{harmonic}, {periods_per_block}");
-        return Err(CaptureError::Parameter {
-            what: "harmonic, periods_per_block", value, allowed: "both ≥ 1".into()
-        });
-    }
-    if !c.annotations.is_valid() {
-        return Err(c.unusable(
-            "not a valid capture (movement_ok, accel_error or sampling_freq): the firmware discards it too".into(),
-        ));
-    }
+    check_lockin(c, harmonic, periods_per_block)?;
     let window = c.require_gcode()?.planned_times()?;
     let states = c.commanded(r)?;
     let (t0, t1) = (window.signal_start, window.signal_end);
