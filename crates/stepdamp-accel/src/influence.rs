@@ -68,19 +68,7 @@ pub fn harmonic_response(
     harmonic: u32,
     periods_per_block: u32,
 ) -> Result<Response, CaptureError> {
-    if harmonic == 0 || periods_per_block == 0 {
-        let value = format!("{harmonic}, {periods_per_block}");
-        return Err(CaptureError::Parameter {
-            what: "harmonic, periods_per_block", value, allowed: "both ≥ 1".into()
-        });
-    }
-    if !c.annotations.is_valid() {
-        let a = c.annotations;
-        return Err(c.unusable(format!(
-            "not a valid capture (movement_ok {}, accel_error {}, sampling_freq {}): the firmware discards it too",
-            a.movement_ok, a.accel_error, a.sampling_freq_hz
-        )));
-    }
+    check_lockin(c, harmonic, periods_per_block)?;
     let g = c.require_gcode()?;
     let Gcode::ParamSweep { speed, .. } = g else {
         return Err(c.unusable(format!("`{g}` sweeps the speed: no constant-speed window")));
@@ -128,6 +116,25 @@ pub fn harmonic_response(
     })
 }
 
+/// Refuses a harmonic or block length of 0 and a capture the firmware itself discards
+/// ([`crate::Annotations::is_valid`]): what every lock-in checks first.
+pub(crate) fn check_lockin(c: &AccelCapture, harmonic: u32, periods_per_block: u32) -> Result<(), CaptureError> {
+    if harmonic == 0 || periods_per_block == 0 {
+        let value = format!("{harmonic}, {periods_per_block}");
+        return Err(CaptureError::Parameter {
+            what: "harmonic, periods_per_block", value, allowed: "both ≥ 1".into()
+        });
+    }
+    if !c.annotations.is_valid() {
+        let a = c.annotations;
+        return Err(c.unusable(format!(
+            "not a valid capture (movement_ok {}, accel_error {}, sampling_freq {}): the firmware discards it too",
+            a.movement_ok, a.accel_error, a.sampling_freq_hz
+        )));
+    }
+    Ok(())
+}
+
 /// The normal equations of `[1, sin nθ, cos nθ]` (upper triangle, then the right-hand side)
 /// of each of the `complete` blocks of `per_block` whole periods from the window's start
 /// (where the angle is extrapolated from the first sample inside, at constant speed).
@@ -151,17 +158,23 @@ fn block_sums(
         let th = st.electrical_rad;
         let b = ((th - theta0).abs() / TAU / f64::from(per_block)).floor() as usize;
         let Some(a) = sums.get_mut(b) else { continue };
-        let (s, co) = (n * th).sin_cos();
-        for (slot, v) in a.iter_mut().zip([1.0, s, co, s * s, s * co, co * co, y, y * s, y * co]) {
-            *slot += v;
-        }
+        accumulate(a, n * th, y);
     }
     sums
 }
 
+/// Adds the sample `y` at the harmonic's angle `n·θ` (rad) to a block's normal equations of
+/// `[1, sin nθ, cos nθ]` (upper triangle, then the right-hand side), as [`solve_block`] reads them.
+pub(crate) fn accumulate(a: &mut [f64; 9], n_theta: f64, y: f64) {
+    let (s, co) = n_theta.sin_cos();
+    for (slot, v) in a.iter_mut().zip([1.0, s, co, s * s, s * co, co * co, y, y * s, y * co]) {
+        *slot += v;
+    }
+}
+
 /// `a + i·b` of one block's least squares `y = c + a·sin + b·cos` (Cramer's rule on the 3×3
 /// normal equations); `None` if they are singular (too few samples).
-fn solve_block(m: &[f64; 9]) -> Option<Complex> {
+pub(crate) fn solve_block(m: &[f64; 9]) -> Option<Complex> {
     let [n, s, co, ss, sc, cc, y, ys, yc] = *m;
     let det3 = |a: [[f64; 3]; 3]| {
         a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])

@@ -12,22 +12,31 @@
 //! - [`influence`]: the complex response of one harmonic in the constant-speed window with a
 //!   95 % interval, the influence coefficient of a known trial correction, the correction that
 //!   cancels the response, and the next step of an iteration.
+//! - [`head`]: the pulley, belt and carriage ([`HeadModel`]) and the rotor held in open loop
+//!   ([`AxisModel`]): the head's acceleration per ripple torque.
+//! - [`lockin`]: the same lock-in on short blocks along a speed sweep, each at its speed.
 //! - [`plan`]: the captures to record for an influence step, as G-code with the reasons.
 //! - [`refine`]: one influence step from a session's captures, per harmonic and direction,
 //!   added to the table in use.
+//! - [`ripple`]: the head and the motor's ripple in N·m from a speed sweep, with intervals
+//!   and a validation.
 //! - [`timing`]: an estimate of when the first sample was taken, from the two marker moves.
 //!
 //! Formats, equations and sign conventions: `docs/accelerometer.md#accelerometer-captures`.
 
 pub mod capture;
 mod complex;
+pub mod head;
 pub mod influence;
+pub mod lockin;
 pub mod plan;
 pub mod prusa;
 pub mod refine;
+pub mod ripple;
 mod timeline;
 pub mod timing;
 
 pub use capture::{AccelCapture, Annotations, Axis, CaptureError, Commanded, Gcode, Reconstruction, TrialSweep};
+pub use head::{AxisModel, HeadError, HeadModel};
 pub use influence::{Complex, Influence, InfluenceError, Next, Response, Step, StopReason};
 pub use prusa::{ReadError, read_captures};

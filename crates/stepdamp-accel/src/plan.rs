@@ -37,11 +37,15 @@ pub struct CapturePlanOptions {
     pub max_speed_rev_s: f64,
     /// Time at constant speed in each capture, s.
     pub steady_s: f64,
+    /// Also plan an `M974` speed sweep per direction, from the fastest planned speed `F` to
+    /// `2F` and back over `4F` revolutions, for the ripple in N·m (`identify --accel`,
+    /// docs/accelerometer.md#identifying-the-ripple-from-captures).
+    pub sweeps: bool,
 }
 
 impl CapturePlanOptions {
     /// The defaults for `axis` and `pole_pairs`: harmonics 1, 2 and 4 with default trials, a
-    /// 1344 Hz accelerometer, at most 2 rev/s, 3 s at speed.
+    /// 1344 Hz accelerometer, at most 2 rev/s, 3 s at speed, and the sweeps.
     pub fn new(axis: Axis, pole_pairs: u16) -> Self {
         CapturePlanOptions {
             axis,
@@ -50,6 +54,7 @@ impl CapturePlanOptions {
             rate_hz: 1344.0,
             max_speed_rev_s: 2.0,
             steady_s: 3.0,
+            sweeps: true,
         }
     }
 }
@@ -149,7 +154,32 @@ pub fn plan_captures(o: &CapturePlanOptions) -> Result<CapturePlan, PlanError> {
             }
         }
     }
+    if o.sweeps {
+        captures.extend(sweep_captures(o));
+    }
     Ok(CapturePlan { captures })
+}
+
+/// The `M974` sweeps of [`CapturePlanOptions::sweeps`], one per direction.
+fn sweep_captures(o: &CapturePlanOptions) -> Vec<PlannedCapture> {
+    let a = round_down(o.max_speed_rev_s, 100.0);
+    let (b, revs) = (2.0 * a, round_to(4.0 * a, 10.0));
+    let low = f64::from(o.pole_pairs) * a;
+    let reason = |dir: &str| {
+        format!(
+            "{dir}: a sweep {a} -> {b} -> {a} rev/s for the head and the ripple in N·m (identify --accel): harmonic 1 from {low:.0} to {:.0} Hz, each harmonic used up to {:.0} % of the {:.0} Hz rate",
+            2.0 * low,
+            100.0 * MAX_BAND_FRACTION,
+            o.rate_hz
+        )
+    };
+    [("forward", -revs), ("backward", revs)]
+        .into_iter()
+        .map(|(dir, r)| PlannedCapture {
+            gcode: Gcode::SpeedSweep { axis: o.axis, start_speed: a, end_speed: b, revs: r },
+            reason: reason(dir),
+        })
+        .collect()
 }
 
 impl fmt::Display for CapturePlan {
@@ -172,8 +202,8 @@ mod tests {
     #[test]
     fn every_harmonic_gets_a_baseline_and_a_trial_in_each_direction_inside_the_band() {
         let p = plan_captures(&CapturePlanOptions::new(Axis::X, 50)).unwrap();
-        assert_eq!(p.captures.len(), 3 * 4);
-        for c in &p.captures {
+        assert_eq!(p.captures.len(), 3 * 4 + 2, "and a sweep per direction");
+        for c in &p.captures[..12] {
             let Gcode::ParamSweep { speed, revs, trial, .. } = c.gcode else { panic!("not M973") };
             let hz = f64::from(trial.harmonic) * 50.0 * speed;
             assert!(hz <= MAX_BAND_FRACTION * 1344.0 && speed <= 2.0 && revs.abs() >= 3.0 * speed, "{c:?}");
@@ -191,7 +221,11 @@ mod tests {
     fn the_printed_plan_is_gcode_the_capture_reader_recognises() {
         let p = plan_captures(&CapturePlanOptions::new(Axis::X, 50)).unwrap();
         let text = p.to_string();
-        assert!(text.lines().all(|l| l.starts_with("; ") || l.starts_with("M973 X F")), "{text}");
+        assert!(
+            text.lines().all(|l| l.starts_with("; ") || l.starts_with("M973 X F") || l.starts_with("M974 X A2 B4 R")),
+            "{text}"
+        );
+        assert!(text.contains("M974 X A2 B4 R-8\n") && text.contains("M974 X A2 B4 R8\n"), "{text}");
         // Each line, echoed by a host before a capture, is taken as that capture's G-code
         // (the firmware accepts it: the reader takes only G-code the firmware would run).
         let capture = "0, 0.01532\n1, -0.04597\nsampling_freq: 1344.52\r\nmovement_ok: true\r\n\

@@ -391,14 +391,16 @@ fn a_missing_log_is_one_line_naming_it_with_the_reason_once() {
 }
 
 #[test]
-fn the_accelerometer_plan_prints_runnable_m973_pairs_sized_by_the_model() {
+fn the_accelerometer_plan_prints_runnable_m973_pairs_sized_by_the_model_and_a_sweep_per_direction() {
     let o =
         stepdamp(&["identify", "plan", "--accel", "--motor", "patent-motor", "--current-rms", "0.55", "--axis", "Y"]);
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let lines: Vec<&str> = out.lines().filter(|l| !l.starts_with(';')).collect();
-    assert_eq!(lines.len(), 12, "{out}");
-    assert!(lines.iter().all(|l| l.starts_with("M973 Y F")), "{out}");
+    assert_eq!(lines.len(), 12 + 2, "{out}");
+    assert!(lines[..12].iter().all(|l| l.starts_with("M973 Y F")), "{out}");
+    // The sweeps `identify --accel` needs for the head and the ripple in N·m.
+    assert_eq!(lines[12..], ["M974 Y A2 B4 R-8", "M974 Y A2 B4 R8"], "{out}");
     // patent-motor at 0.55 A RMS: order 2 is 12 mN·m at phase 0.7, so its trial is
     // 0.012/(0.3·0.778·4) = 0.01286 at A0.7.
     assert!(out.contains("M973 Y F2 R-6 H2 A0.7 B0.7 C0.01286 D0.01286"), "{out}");

@@ -56,7 +56,8 @@ fn a_simulated_capture_reads_back_with_the_annotations_and_rate_it_was_given() {
 /// The response of harmonic `n` the model predicts without correction: the motor's ripple
 /// at the run current, `T(θr) = −A·sin(nθr + φ)` (`stepdamp_profile::ripple`), on the rotor
 /// held by the magnetic stiffness `K = Km·I·Nr` with `J + m·r²` and viscous `c`, through the
-/// head's transfer function, at `w = n·Nr·2π·v`; `lag` (rad) is the mean electrical angle of
+/// head's transfer function ([`stepdamp_accel::AxisModel::acceleration_per_torque`]), at
+/// `w = n·Nr·2π·v`; `lag` (rad) is the mean electrical angle of
 /// the rotor against the plan, measured.
 fn predicted(p: &SimulatedPrinter, n: u32, speed_signed_rev_s: f64, lag: f64) -> Complex {
     let m = &p.profile.motor;
@@ -64,11 +65,10 @@ fn predicted(p: &SimulatedPrinter, n: u32, speed_signed_rev_s: f64, lag: f64) ->
     let h = r.harmonics.iter().find(|h| u32::from(h.order) == n).unwrap();
     let nr = f64::from(m.pole_pairs);
     let k = m.km_nm_per_a * p.run_current_a * nr;
-    let j = m.inertia_kg_m2 + p.head.reflected_inertia_kg_m2();
+    let axis = stepdamp_accel::AxisModel::new(&p.head, m.inertia_kg_m2, k, m.viscous_nm_s_per_rad);
     let w = f64::from(n) * nr * std::f64::consts::TAU * speed_signed_rev_s;
-    let rotor = Complex::new(-w * w, 0.0) / Complex::new(k - j * w * w, m.viscous_nm_s_per_rad * w);
     let torque = Complex::from_polar(-h.amplitude_nm, h.phase_rad);
-    p.head.transfer(w) * rotor * torque * Complex::from_polar(1.0, f64::from(n) * lag)
+    axis.acceleration_per_torque(w) * torque * Complex::from_polar(1.0, f64::from(n) * lag)
 }
 
 /// The mean electrical angle (rad) of the rotor against the plan over `[from, to]` s.

@@ -7,6 +7,7 @@ mod simulate;
 use crate::Global;
 use anyhow::{Context, Result, bail};
 use std::path::PathBuf;
+use stepdamp_accel::{AccelCapture, Axis};
 use stepdamp_export::escape;
 use stepdamp_export::prusa::{self, Firmware, PrusaCorrection, Spectrum};
 
@@ -48,4 +49,32 @@ fn table_in_use(arg: &str, axis: char) -> Result<PrusaCorrection> {
         );
     }
     Ok(c)
+}
+
+/// Every capture of every log, refusing one of another axis.
+pub(crate) fn read_captures(logs: &[PathBuf], axis: Axis) -> Result<Vec<AccelCapture>> {
+    let mut all = Vec::new();
+    for path in logs {
+        for c in stepdamp_accel::prusa::read_file(path)? {
+            if let Some(g) = c.gcode
+                && g.axis() != axis
+            {
+                bail!("{}:{}: `{g}` moved the other axis than --axis", escape::line(&c.source), c.line);
+            }
+            all.push(c);
+        }
+    }
+    if all.is_empty() {
+        bail!("no captures in the logs given");
+    }
+    Ok(all)
+}
+
+/// `--axis`: `X` or `Y` (either case), with its letter for the M971 lines.
+pub(crate) fn parse_axis(arg: &str) -> Result<(Axis, char)> {
+    match arg {
+        "X" | "x" => Ok((Axis::X, 'X')),
+        "Y" | "y" => Ok((Axis::Y, 'Y')),
+        o => bail!("--axis {}: Prusa phase stepping has axes X and Y", escape::line(o)),
+    }
 }

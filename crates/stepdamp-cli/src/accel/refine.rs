@@ -7,8 +7,6 @@ use crate::export::CurrentArgs;
 use anyhow::{Result, bail};
 use std::path::PathBuf;
 use stepdamp_accel::refine::{InUse, RefineOptions, Refined, TABLE_ITEMS, Timing, refine};
-use stepdamp_accel::{AccelCapture, Axis};
-use stepdamp_export::escape;
 use stepdamp_export::prusa::{self, Firmware, Fitted, PrusaCorrection, Spectrum, gcode};
 
 /// How the time of each capture's first sample is found.
@@ -59,17 +57,13 @@ pub struct RefineArgs {
 
 /// Runs `stepdamp accel refine`.
 pub(super) fn run_refine(a: RefineArgs) -> Result<()> {
-    let (axis, letter) = match a.axis.as_str() {
-        "X" | "x" => (Axis::X, 'X'),
-        "Y" | "y" => (Axis::Y, 'Y'),
-        o => bail!("--axis {}: Prusa phase stepping has axes X and Y", escape::line(o)),
-    };
+    let (axis, letter) = super::parse_axis(&a.axis)?;
     if !(a.mm_per_rev.is_finite() && (1.0..=1000.0).contains(&a.mm_per_rev)) {
         bail!("--mm-per-rev {:e}: must be in 1..=1000 mm", a.mm_per_rev);
     }
     let run = a.current.run_current()?;
     let motor = load_motor(&a.motor)?;
-    let captures = read_captures(&a.logs, axis)?;
+    let captures = super::read_captures(&a.logs, axis)?;
     let old = super::table_in_use(&a.in_use, letter)?;
     let o = RefineOptions {
         periods_per_rev: u32::from(motor.motor.pole_pairs),
@@ -107,25 +101,6 @@ pub(super) fn run_refine(a: RefineArgs) -> Result<()> {
     outln!("not simulated: a measured correction, valid at {run}; record the baselines again with it to confirm");
     outln!("wrote {} (M970 {letter}0, M971 {letter} F|B x{TABLE_ITEMS}, M970 {letter}1)", a.out.display());
     Ok(())
-}
-
-/// Every capture of every log, refusing one of another axis.
-fn read_captures(logs: &[PathBuf], axis: Axis) -> Result<Vec<AccelCapture>> {
-    let mut all = Vec::new();
-    for path in logs {
-        for c in stepdamp_accel::prusa::read_file(path)? {
-            if let Some(g) = c.gcode
-                && g.axis() != axis
-            {
-                bail!("{}:{}: `{g}` moved the other axis than --axis", escape::line(&c.source), c.line);
-            }
-            all.push(c);
-        }
-    }
-    if all.is_empty() {
-        bail!("no captures in the logs given");
-    }
-    Ok(all)
 }
 
 /// The G-code of `c`, refused when its table would not fit the firmware's int8 shifts.

@@ -65,10 +65,36 @@ pub(super) struct FitArgs {
     /// routes on the same runs; the encoder angle is then not read).
     #[arg(long)]
     pub(super) sensorless: bool,
+    /// Instead of run logs: Prusa accelerometer captures (session logs with the echoed
+    /// M973/M974 commands, recorded with the correction off): an M974 sweep and an M973 pair
+    /// per direction (`identify plan --accel`). Identifies the head and the ripple, orders
+    /// 1-16 where the sampling rate allows, per direction at the run current, and writes the
+    /// TOML of docs/files.md#identified-ripple-toml (docs/accelerometer.md#identifying-the-ripple-from-captures).
+    #[arg(long, num_args = 1.., value_name = "CAPTURE")]
+    pub(super) accel: Vec<PathBuf>,
+    /// With --accel: the motor the captures moved, X or Y (on CoreXY the A or B motor).
+    #[arg(long, value_name = "X|Y")]
+    pub(super) axis: Option<String>,
+    /// With --accel: the run current the captures were recorded at.
+    #[command(flatten)]
+    pub(super) current: crate::export::CurrentArgs,
+    /// With --accel: belt travel per motor revolution, mm (GT2 belt, 16-tooth pulley: 32);
+    /// the pulley's pitch radius is this / 2π.
+    #[arg(long, default_value_t = 32.0)]
+    pub(super) mm_per_rev: f64,
+    /// With --accel: whole electrical periods per lock-in block.
+    #[arg(long, default_value_t = 4)]
+    pub(super) periods_per_block: u32,
 }
 
 /// Runs `stepdamp identify --log …`.
 pub(super) fn run_fit_cmd(a: FitArgs, _global: &Global) -> Result<()> {
+    if !a.accel.is_empty() {
+        return super::accel_cmd::run_accel_cmd(&a);
+    }
+    if a.axis.is_some() || a.current.given() {
+        bail!("--axis and --current/--current-rms go with --accel (run logs carry their own currents)");
+    }
     let Some(motor) = &a.motor else { bail!("--motor is needed: the base profile (preset or TOML) with Km, Nr, J") };
     let Some(out) = &a.out else { bail!("--out is needed: where to write the identified profile (TOML)") };
     if a.logs.is_empty() {

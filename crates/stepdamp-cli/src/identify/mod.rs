@@ -5,6 +5,7 @@
 //!
 //! ```text
 //! stepdamp identify --log a.csv --log b.csv --motor base.toml --out identified.toml [--orders 1,2,4] [--report DIR]
+//! stepdamp identify --accel CAPTURE... --motor base.toml --axis X|Y --current-rms A --out ripple.toml
 //! stepdamp identify plan   --motor FILE [--sensorless] [--format text|json|csv]
 //! stepdamp identify run    --motor FILE --out DIR [--refine] [--report] [--sensorless]
 //! stepdamp identify static --table curve.csv --motor base.toml --out identified.toml [--sign on-rotor|holding]
@@ -13,6 +14,7 @@
 use crate::Global;
 use anyhow::Result;
 
+mod accel_cmd;
 mod args;
 mod fit_cmd;
 mod plan_cmd;

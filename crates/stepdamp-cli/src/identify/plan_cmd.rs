@@ -5,8 +5,8 @@ use super::args::{Orders, parse_orders, plan_options};
 use crate::common::{load_motor, print_json};
 use crate::export::CurrentArgs;
 use anyhow::{Result, bail};
+use stepdamp_accel::capture::MAX_HARMONIC;
 use stepdamp_accel::plan::{CapturePlanOptions, plan_captures};
-use stepdamp_accel::{Axis, capture::MAX_HARMONIC};
 use stepdamp_export::{Correction, prusa};
 use stepdamp_identify::plan::{PlannedRun, plan, runs_csv};
 use stepdamp_identify::sensorless::plan::{SensorlessPlanOptions, plan as sensorless_plan};
@@ -109,11 +109,7 @@ fn run_accel_plan(a: &PlanArgs, motor: &stepdamp_sim::Profile) -> Result<()> {
     if a.format != PlanFormat::Text {
         bail!("--format {:?} does nothing with --accel: the plan is G-code (text)", a.format);
     }
-    let axis = match a.axis.as_deref() {
-        None | Some("X" | "x") => Axis::X,
-        Some("Y" | "y") => Axis::Y,
-        Some(o) => bail!("--axis {}: Prusa phase stepping has axes X and Y", stepdamp_export::escape::line(o)),
-    };
+    let (axis, _) = crate::accel::parse_axis(a.axis.as_deref().unwrap_or("X"))?;
     let run = a.current.run_current()?;
     // The model's correction at the run current, in the firmware's table form (one home:
     // the exporter's fit), is each order's trial.
