@@ -41,7 +41,7 @@ const PERIODS_PER_BLOCK: u32 = 20;
 const SNR_K: f64 = 25.0;
 /// The largest change of the response a planned trial may make, in units of the baseline
 /// response: the trial is the size of the model's correction, which changes it by about its
-/// own size; more is a rotor out of its linear range or a model far off ([`route`]).
+/// own size; more is a rotor out of its linear range or a model far off ([`first_step`]).
 const MAX_TRIAL_EFFECT: f64 = 4.0;
 /// The second trial's size against the first, after a trial out of the linear range.
 const SECOND_TRIAL_FACTOR: f64 = 0.25;
