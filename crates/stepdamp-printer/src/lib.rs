@@ -11,15 +11,22 @@
 //! - [`printer`]: the axis ([`SimulatedPrinter`]): the motor simulator in open loop
 //!   replaying the Prusa table, the move as the firmware plans it, the accelerometer
 //!   ([`AccelModel`]) and the printed capture.
+//! - [`score`]: an absolute vibration score of a capture ([`VibrationScore`]).
+//! - [`family`]: a seeded family of random printers ([`family_printer`]): real motors,
+//!   heads, run currents.
 //!
 //! Models and approximations: `docs/accelerometer.md#simulated-printer`.
 
+pub mod family;
 mod format;
 pub mod head;
 pub mod printer;
+pub mod score;
 
+pub use family::family_printer;
 pub use head::{HeadError, HeadModel};
 pub use printer::{AccelModel, PrinterError, SimulatedPrinter, Trace};
+pub use score::VibrationScore;
 
 #[cfg(test)]
 mod end_to_end;
