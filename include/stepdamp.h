@@ -115,6 +115,27 @@ typedef struct sd_motor {
    * Number of harmonics at `detent`, 0..=`SD_MAX_HARMONICS`.
    */
   uint32_t detent_count;
+  /**
+   * The ripple that grows with the current (a real motor's flux harmonics and phase
+   * imbalance, docs/design.md#real-motors-flux-harmonics): its part per ampere of `i_d`,
+   * `amplitude_nm` in N·m/A (what `stepdamp motor ripple --format json` gives as the
+   * profile's parts; `export c-header` writes it), or NULL with a count of 0 for a
+   * pure-sine motor. Read only during `sd_config_init()`.
+   */
+  const struct sd_harmonic *ripple_per_amp_d;
+  /**
+   * Number of harmonics at `ripple_per_amp_d`, 0..=`SD_MAX_HARMONICS`.
+   */
+  uint32_t ripple_per_amp_d_count;
+  /**
+   * Its part per ampere of `i_q` without its mean (the mean is `Km`), N·m/A, or NULL with
+   * a count of 0.
+   */
+  const struct sd_harmonic *ripple_per_amp_q;
+  /**
+   * Number of harmonics at `ripple_per_amp_q`, 0..=`SD_MAX_HARMONICS`.
+   */
+  uint32_t ripple_per_amp_q_count;
 } sd_motor;
 
 /**
@@ -531,6 +552,23 @@ typedef struct sd_config_info {
 #define SD_ERR_INVALID_PARAMETER 30
 
 /**
+ * A current-ripple table (`motor.ripple_per_amp_d`, `motor.ripple_per_amp_q`) has more than
+ * `SD_MAX_HARMONICS` entries, or its pointer and count disagree (NULL with a count, or a
+ * pointer with a count of 0).
+ */
+#define SD_ERR_RIPPLE_TABLE 31
+
+/**
+ * A current-ripple amplitude (N·m/A) is outside its range (`sd_status_str()` states it).
+ */
+#define SD_ERR_RIPPLE_AMPLITUDE 32
+
+/**
+ * A current-ripple phase is outside its range (`sd_status_str()` states it).
+ */
+#define SD_ERR_RIPPLE_PHASE 33
+
+/**
  * Microstepping without an encoder (patent eqs. 7–8).
  */
 #define SD_MODE_OPEN_LOOP 0
@@ -602,10 +640,12 @@ sd_status sd_params_patent_motor(sd_mode mode, sd_compensation compensation, str
  *
  * # Safety
  * `params` is NULL or points to a readable `sd_params` whose `motor.detent` is NULL or
- * points to `motor.detent_count` readable `sd_harmonic`s; `cfg` is NULL or points to a
+ * points to `motor.detent_count` readable `sd_harmonic`s (and likewise
+ * `motor.ripple_per_amp_d`, `motor.ripple_per_amp_q` with their counts); `cfg` is NULL or points to a
  * writable `sd_config`.
  */
-sd_status sd_config_init(const struct sd_params *params, struct sd_config *cfg);
+sd_status sd_config_init(const struct sd_params *params,
+                         struct sd_config *cfg);
 
 /**
  * Sets `*st` to the start state: rotor and command at position 0, speed 0, no faults.

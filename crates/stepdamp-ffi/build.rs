@@ -15,7 +15,7 @@ fn range(name: &str, limit: &Limit) -> String {
 
 fn main() {
     let k = Num(l::CURRENT_LOOP_BANDWIDTH_PER_PWM);
-    let texts: [(&str, String); 19] = [
+    let texts: [(&str, String); 21] = [
         ("HARMONIC_ORDER", format!("a detent harmonic order must be in {}", l::DETENT_ORDER)),
         ("KM", range("motor.km_nm_per_a", &l::KM_NM_PER_A)),
         ("POLE_PAIRS", range("motor.pole_pairs", &l::POLE_PAIRS)),
@@ -62,6 +62,8 @@ fn main() {
             ),
         ),
         ("DETENT_PHASE", range("a detent phase", &l::DETENT_PHASE_RAD)),
+        ("RIPPLE_AMPLITUDE", range("a current-ripple amplitude (N·m/A)", &l::CURRENT_RIPPLE_NM_PER_A)),
+        ("RIPPLE_PHASE", range("a current-ripple phase", &l::CURRENT_RIPPLE_PHASE_RAD)),
     ];
     let mut out = String::from("// Written by build.rs from stepdamp_core::limits. Do not edit.\n");
     for (name, text) in &texts {

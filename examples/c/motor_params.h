@@ -8,7 +8,7 @@
 
 #include "stepdamp.h"
 
-/* Detent torque on the rotor: -A sin(k·Nr·θ + φ). */
+/* Detent torque on the rotor: -A sin(k·Nr·θ + φ), N·m. */
 static const sd_harmonic motor_DETENT[3] = {
     { .order = 4, .amplitude_nm = 2e-2f, .phase_rad = 0e0f },
     { .order = 2, .amplitude_nm = 1.2e-2f, .phase_rad = 7e-1f },
@@ -24,6 +24,10 @@ static const sd_params motor_PARAMS = {
         .coulomb_friction_nm = 1e-2f,
         .detent = motor_DETENT,
         .detent_count = 3,
+        .ripple_per_amp_d = NULL,
+        .ripple_per_amp_d_count = 0,
+        .ripple_per_amp_q = NULL,
+        .ripple_per_amp_q_count = 0,
     },
     .drive = {
         .bus_voltage_v = 4.8e1f,

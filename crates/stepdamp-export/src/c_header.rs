@@ -68,34 +68,44 @@ pub fn header(p: &Profile, name: &str, origin: &str, ident: &str) -> Result<Stri
         p.servo.velocity_filter_hz,
         crate::RunCurrent::from_peak(d.holding_current_a)?
     );
-    let detent = if m.detent.is_empty() {
-        "NULL".to_string()
-    } else {
-        s += &format!(
-            "/* Detent torque on the rotor: -A sin(k·Nr·θ + φ). */\nstatic const sd_harmonic {ident}_DETENT[{}] = {{\n",
-            m.detent.len()
-        );
-        for h in &m.detent {
-            s += &format!(
-                "    {{ .order = {}, .amplitude_nm = {}, .phase_rad = {} }},\n",
-                h.order,
-                f(h.amplitude_nm),
-                f(h.phase_rad)
-            );
-        }
-        s += "};\n\n";
-        format!("{ident}_DETENT")
-    };
+    // The tables the Rust controller is built with (Profile::controller_harmonics): the
+    // detent and, with a [motor.flux] section, the ripple per ampere of i_d and of i_q.
+    let model = p.controller_harmonics();
+    let detent = c_table(
+        &mut s,
+        &format!("{ident}_DETENT"),
+        "Detent torque on the rotor: -A sin(k·Nr·θ + φ), N·m.",
+        &model.detent,
+    );
+    let per_amp_d = c_table(
+        &mut s,
+        &format!("{ident}_RIPPLE_PER_AMP_D"),
+        "The ripple that grows with the current, per ampere of i_d (N·m/A), from the profile's [motor.flux].",
+        &model.per_amp_d,
+    );
+    let per_amp_q = c_table(
+        &mut s,
+        &format!("{ident}_RIPPLE_PER_AMP_Q"),
+        "The ripple per ampere of i_q without its mean Km (N·m/A), from the profile's [motor.flux].",
+        &model.per_amp_q,
+    );
     s += &format!("static const sd_params {ident}_PARAMS = {{\n");
     s += &format!(
         "    .motor = {{\n        .km_nm_per_a = {},\n        .pole_pairs = {},\n        .resistance_ohm = {},\n        \
-         .inductance_h = {},\n        .coulomb_friction_nm = {},\n        .detent = {detent},\n        .detent_count = {},\n    }},\n",
+         .inductance_h = {},\n        .coulomb_friction_nm = {},\n        .detent = {},\n        .detent_count = {},\n        \
+         .ripple_per_amp_d = {},\n        .ripple_per_amp_d_count = {},\n        .ripple_per_amp_q = {},\n        \
+         .ripple_per_amp_q_count = {},\n    }},\n",
         f(m.km_nm_per_a),
         m.pole_pairs,
         f(m.resistance_ohm),
         f(m.inductance_h),
         f(m.coulomb_friction_nm),
-        m.detent.len()
+        detent.0,
+        detent.1,
+        per_amp_d.0,
+        per_amp_d.1,
+        per_amp_q.0,
+        per_amp_q.1,
     );
     s += &format!(
         "    .drive = {{\n        .bus_voltage_v = {},\n        .pwm_hz = {},\n        .holding_current_a = {},\n        \
@@ -122,9 +132,55 @@ pub fn header(p: &Profile, name: &str, origin: &str, ident: &str) -> Result<Stri
     Ok(s)
 }
 
+/// Appends the C array `name` of `harmonics` (with `comment`) to `s`, unless it is empty;
+/// returns what the initializer points to (`name` or `NULL`) and the count.
+fn c_table(s: &mut String, name: &str, comment: &str, harmonics: &[stepdamp_core::Harmonic]) -> (String, usize) {
+    if harmonics.is_empty() {
+        return ("NULL".to_string(), 0);
+    }
+    *s += &format!("/* {comment} */\nstatic const sd_harmonic {name}[{}] = {{\n", harmonics.len());
+    for h in harmonics {
+        *s += &format!(
+            "    {{ .order = {}, .amplitude_nm = {:e}f, .phase_rad = {:e}f }},\n",
+            h.order, h.amplitude_nm, h.phase_rad
+        );
+    }
+    *s += "};\n\n";
+    (name.to_string(), harmonics.len())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_flux_motor_gets_the_controllers_current_ripple_tables_a_sine_motor_none() {
+        let real = Profile::from_file(std::path::Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../docs/profiles/patent-motor-real.toml"
+        )))
+        .unwrap();
+        let model = real.controller_harmonics();
+        assert!(!model.per_amp_d.is_empty() && !model.per_amp_q.is_empty());
+        let h = header(&real, &real.name, "file", "x").unwrap();
+        for (name, t) in [("D", &model.per_amp_d), ("Q", &model.per_amp_q)] {
+            assert!(h.contains(&format!("static const sd_harmonic x_RIPPLE_PER_AMP_{name}[{}]", t.len())), "{h}");
+            assert!(h.contains(&format!(".ripple_per_amp_{} = x_RIPPLE_PER_AMP_{name},", name.to_lowercase())), "{h}");
+        }
+        let first = model.per_amp_d[0];
+        let line = format!(
+            ".order = {}, .amplitude_nm = {:e}f, .phase_rad = {:e}f",
+            first.order, first.amplitude_nm, first.phase_rad
+        );
+        assert!(h.contains(&line), "{line}\n{h}");
+        let sine = Profile::preset("patent-motor").unwrap();
+        let h = header(&sine, &sine.name, "preset", "m").unwrap();
+        assert!(
+            h.contains(".ripple_per_amp_d = NULL,\n        .ripple_per_amp_d_count = 0,")
+                && !h.contains("RIPPLE_PER_AMP"),
+            "{h}"
+        );
+    }
 
     #[test]
     fn initializer_names_every_field_of_the_ffi_header_with_exact_f32_values() {

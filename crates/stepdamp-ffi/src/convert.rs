@@ -73,17 +73,25 @@ fn topology_to_c(t: Topology) -> sd_topology {
     }
 }
 
-/// The core's parameters from the C ones; `harmonics` (already bounds-checked) is copied
-/// into `table`, which the result borrows.
+/// The harmonic tables of a C motor: detent, ripple per ampere of `i_d`, of `i_q`.
+pub(crate) type Tables = [[Harmonic; SD_MAX_HARMONICS as usize]; 3];
+
+/// The core's parameters from the C ones; `harmonics` (the detent, the ripple per ampere of
+/// `i_d` and of `i_q`, already bounds-checked) are copied into `tables`, which the result
+/// borrows.
 pub(crate) fn params_from_c<'t>(
     p: &sd_params,
-    harmonics: &[sd_harmonic],
-    table: &'t mut [Harmonic; SD_MAX_HARMONICS as usize],
+    harmonics: [&[sd_harmonic]; 3],
+    tables: &'t mut Tables,
 ) -> Result<Params<'t>, sd_status> {
-    let n = harmonics.len().min(table.len());
-    for (dst, h) in table.iter_mut().zip(harmonics) {
-        *dst = Harmonic { order: h.order, amplitude_nm: h.amplitude_nm, phase_rad: h.phase_rad };
+    let mut n = [0usize; 3];
+    for ((src, table), n) in harmonics.iter().zip(tables.iter_mut()).zip(&mut n) {
+        *n = src.len().min(table.len());
+        for (dst, h) in table.iter_mut().zip(*src) {
+            *dst = Harmonic { order: h.order, amplitude_nm: h.amplitude_nm, phase_rad: h.phase_rad };
+        }
     }
+    let [detent, per_amp_d, per_amp_q] = tables;
     let (m, d, s) = (&p.motor, &p.drive, &p.servo);
     Ok(Params {
         motor: MotorModel {
@@ -92,9 +100,11 @@ pub(crate) fn params_from_c<'t>(
             resistance_ohm: m.resistance_ohm,
             inductance_h: m.inductance_h,
             coulomb_friction_nm: m.coulomb_friction_nm,
-            detent: table.get(..n).unwrap_or(&[]),
-            // C cannot give the ripple that grows with the current yet (docs/c.md).
-            current_ripple: CurrentRipple::NONE,
+            detent: detent.get(..n[0]).unwrap_or(&[]),
+            current_ripple: CurrentRipple {
+                per_amp_d: per_amp_d.get(..n[1]).unwrap_or(&[]),
+                per_amp_q: per_amp_q.get(..n[2]).unwrap_or(&[]),
+            },
         },
         drive: DriveSettings {
             bus_voltage_v: d.bus_voltage_v,
@@ -130,6 +140,10 @@ pub(crate) fn patent_motor_c(mode: sd_mode, compensation: sd_compensation) -> Re
             coulomb_friction_nm: m.coulomb_friction_nm,
             detent: PATENT_DETENT_C.as_ptr(),
             detent_count: PATENT_DETENT_C.len() as u32,
+            ripple_per_amp_d: core::ptr::null(),
+            ripple_per_amp_d_count: 0,
+            ripple_per_amp_q: core::ptr::null(),
+            ripple_per_amp_q_count: 0,
         },
         drive: sd_drive {
             bus_voltage_v: d.bus_voltage_v,
@@ -205,6 +219,8 @@ pub(crate) fn status_of(e: &ConfigError) -> sd_status {
             "servo.velocity_filter_hz" => SD_ERR_SERVO_VELOCITY_FILTER,
             "detent.amplitude_nm" => SD_ERR_DETENT_AMPLITUDE,
             "detent.phase_rad" => SD_ERR_DETENT_PHASE,
+            "current_ripple.amplitude_nm_per_a" => SD_ERR_RIPPLE_AMPLITUDE,
+            "current_ripple.phase_rad" => SD_ERR_RIPPLE_PHASE,
             _ => SD_ERR_INVALID_PARAMETER,
         },
     }
@@ -218,7 +234,7 @@ mod texts {
 
 /// Every status code with its text (one home: `sd_status_str` and the tests read it; the
 /// ranges come from [`texts`]).
-pub(crate) const STATUS_TEXTS: [(sd_status, &CStr); 31] = [
+pub(crate) const STATUS_TEXTS: [(sd_status, &CStr); 34] = [
     (SD_OK, c"ok"),
     (SD_ERR_NULL_POINTER, c"a pointer argument is NULL"),
     (SD_ERR_NOT_INITIALIZED, c"sd_config/sd_state not initialised (or its initialisation failed)"),
@@ -250,6 +266,12 @@ pub(crate) const STATUS_TEXTS: [(sd_status, &CStr); 31] = [
     (SD_ERR_DETENT_AMPLITUDE, texts::DETENT_AMPLITUDE),
     (SD_ERR_DETENT_PHASE, texts::DETENT_PHASE),
     (SD_ERR_INVALID_PARAMETER, c"a parameter was rejected (no dedicated code in this version)"),
+    (
+        SD_ERR_RIPPLE_TABLE,
+        c"motor.ripple_per_amp_d/_q: more than SD_MAX_HARMONICS entries, or NULL with a count, or a pointer with a count of 0",
+    ),
+    (SD_ERR_RIPPLE_AMPLITUDE, texts::RIPPLE_AMPLITUDE),
+    (SD_ERR_RIPPLE_PHASE, texts::RIPPLE_PHASE),
 ];
 
 pub(crate) fn status_text(s: sd_status) -> &'static CStr {

@@ -165,7 +165,8 @@ pub unsafe extern "C" fn sd_params_patent_motor(
 ///
 /// # Safety
 /// `params` is NULL or points to a readable `sd_params` whose `motor.detent` is NULL or
-/// points to `motor.detent_count` readable `sd_harmonic`s; `cfg` is NULL or points to a
+/// points to `motor.detent_count` readable `sd_harmonic`s (and likewise
+/// `motor.ripple_per_amp_d`, `motor.ripple_per_amp_q` with their counts); `cfg` is NULL or points to a
 /// writable `sd_config`.
 #[allow(unsafe_code)]
 #[unsafe(no_mangle)]
@@ -181,22 +182,24 @@ pub unsafe extern "C" fn sd_config_init(params: *const sd_params, cfg: *mut sd_c
     // Cleared first so that a failed initialisation leaves an unusable config.
     unsafe { core::ptr::addr_of_mut!((*slot).tag).write(0) };
     let p = deref!(params);
-    let (detent, count) = (p.motor.detent, p.motor.detent_count);
-    let harmonics = if count > SD_MAX_HARMONICS {
-        return SD_ERR_DETENT_COUNT_BEYOND_CAPACITY;
-    } else if count > 0 && detent.is_null() {
-        return SD_ERR_DETENT_NULL_WITH_COUNT;
-    } else if count == 0 && !detent.is_null() {
-        return SD_ERR_DETENT_POINTER_WITHOUT_COUNT;
-    } else if count == 0 {
-        &[][..]
-    } else {
-        // SAFETY: non-NULL, count ≤ SD_MAX_HARMONICS, and the caller promises that many
-        // readable harmonics.
-        unsafe { core::slice::from_raw_parts(detent, count as usize) }
+    let m = &p.motor;
+    let detent_errors =
+        (SD_ERR_DETENT_COUNT_BEYOND_CAPACITY, SD_ERR_DETENT_NULL_WITH_COUNT, SD_ERR_DETENT_POINTER_WITHOUT_COUNT);
+    let ripple_errors = (SD_ERR_RIPPLE_TABLE, SD_ERR_RIPPLE_TABLE, SD_ERR_RIPPLE_TABLE);
+    // SAFETY (the three): the caller promises each pointer is NULL or points to its count of
+    // readable harmonics.
+    let harmonics = match unsafe {
+        (
+            c_table(m.detent, m.detent_count, detent_errors),
+            c_table(m.ripple_per_amp_d, m.ripple_per_amp_d_count, ripple_errors),
+            c_table(m.ripple_per_amp_q, m.ripple_per_amp_q_count, ripple_errors),
+        )
+    } {
+        (Ok(a), Ok(b), Ok(c)) => [a, b, c],
+        (Err(e), _, _) | (_, Err(e), _) | (_, _, Err(e)) => return e,
     };
-    let mut table = [stepdamp_core::Harmonic::default(); SD_MAX_HARMONICS as usize];
-    let core_params = match params_from_c(p, harmonics, &mut table) {
+    let mut tables = [[stepdamp_core::Harmonic::default(); SD_MAX_HARMONICS as usize]; 3];
+    let core_params = match params_from_c(p, harmonics, &mut tables) {
         Ok(cp) => cp,
         Err(s) => return s,
     };
@@ -207,6 +210,32 @@ pub unsafe extern "C" fn sd_config_init(params: *const sd_params, cfg: *mut sd_c
             SD_OK
         }
         Err(e) => status_of(&e),
+    }
+}
+
+/// A C table of `count` harmonics at `ptr` as a slice; the statuses for a count beyond
+/// `SD_MAX_HARMONICS`, NULL with a count, and a pointer with a count of 0.
+///
+/// # Safety
+/// `ptr` is NULL or points to `count` readable `sd_harmonic`s.
+#[allow(unsafe_code)]
+unsafe fn c_table<'a>(
+    ptr: *const sd_harmonic,
+    count: u32,
+    (beyond, null_with_count, pointer_without_count): (sd_status, sd_status, sd_status),
+) -> Result<&'a [sd_harmonic], sd_status> {
+    if count > SD_MAX_HARMONICS {
+        Err(beyond)
+    } else if count > 0 && ptr.is_null() {
+        Err(null_with_count)
+    } else if count == 0 && !ptr.is_null() {
+        Err(pointer_without_count)
+    } else if count == 0 {
+        Ok(&[])
+    } else {
+        // SAFETY: non-NULL, count ≤ SD_MAX_HARMONICS, and the caller promises that many
+        // readable harmonics.
+        Ok(unsafe { core::slice::from_raw_parts(ptr, count as usize) })
     }
 }
 

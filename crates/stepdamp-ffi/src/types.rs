@@ -76,6 +76,14 @@ pub const SD_ERR_DETENT_PHASE: sd_status = 29;
 /// A parameter this version of the C API has no dedicated code for was rejected by the
 /// core (a newer check); the Rust `ConfigError` names it.
 pub const SD_ERR_INVALID_PARAMETER: sd_status = 30;
+/// A current-ripple table (`motor.ripple_per_amp_d`, `motor.ripple_per_amp_q`) has more than
+/// `SD_MAX_HARMONICS` entries, or its pointer and count disagree (NULL with a count, or a
+/// pointer with a count of 0).
+pub const SD_ERR_RIPPLE_TABLE: sd_status = 31;
+/// A current-ripple amplitude (N·m/A) is outside its range (`sd_status_str()` states it).
+pub const SD_ERR_RIPPLE_AMPLITUDE: sd_status = 32;
+/// A current-ripple phase is outside its range (`sd_status_str()` states it).
+pub const SD_ERR_RIPPLE_PHASE: sd_status = 33;
 
 /// Control mode (`SD_MODE_*`).
 pub type sd_mode = u32;
@@ -142,6 +150,19 @@ pub struct sd_motor {
     pub detent: *const sd_harmonic,
     /// Number of harmonics at `detent`, 0..=`SD_MAX_HARMONICS`.
     pub detent_count: u32,
+    /// The ripple that grows with the current (a real motor's flux harmonics and phase
+    /// imbalance, docs/design.md#real-motors-flux-harmonics): its part per ampere of `i_d`,
+    /// `amplitude_nm` in N·m/A (what `stepdamp motor ripple --format json` gives as the
+    /// profile's parts; `export c-header` writes it), or NULL with a count of 0 for a
+    /// pure-sine motor. Read only during `sd_config_init()`.
+    pub ripple_per_amp_d: *const sd_harmonic,
+    /// Number of harmonics at `ripple_per_amp_d`, 0..=`SD_MAX_HARMONICS`.
+    pub ripple_per_amp_d_count: u32,
+    /// Its part per ampere of `i_q` without its mean (the mean is `Km`), N·m/A, or NULL with
+    /// a count of 0.
+    pub ripple_per_amp_q: *const sd_harmonic,
+    /// Number of harmonics at `ripple_per_amp_q`, 0..=`SD_MAX_HARMONICS`.
+    pub ripple_per_amp_q_count: u32,
 }
 
 /// Power stage and current loop settings.

@@ -5,7 +5,7 @@
 
 use std::ptr::{null, null_mut};
 
-use stepdamp_core::{Compensation, Config, Measurement, Mode, Params, State, step};
+use stepdamp_core::{Compensation, Config, CurrentRipple, Harmonic, Measurement, Mode, Params, State, step};
 use stepdamp_ffi::*;
 
 fn zeroed_config() -> Box<sd_config> {
@@ -34,10 +34,15 @@ fn init(p: &sd_params) -> (sd_status, Box<sd_config>) {
 /// Runs `periods` through the C API and through the core with the same synthetic samples
 /// and checks every output bit for bit.
 fn same_as_core(mode: Mode, comp: Compensation, mode_c: sd_mode, comp_c: sd_compensation) {
-    let (s, cfg_c) = init(&patent(mode_c, comp_c));
+    same_as_core_with(&patent(mode_c, comp_c), &Params::patent_motor(mode, comp));
+}
+
+/// [`same_as_core`] for C parameters `c` and the core's `params`, which must be the same.
+fn same_as_core_with(c: &sd_params, params: &Params<'_>) {
+    let (s, cfg_c) = init(c);
     assert_eq!(s, SD_OK);
     let mut st_c = zeroed_state();
-    let cfg = Config::new(&Params::patent_motor(mode, comp)).unwrap();
+    let cfg = Config::new(params).unwrap();
     let mut st = State::default();
     // SAFETY: valid pointers throughout.
     unsafe {
@@ -147,6 +152,63 @@ fn each_rejected_parameter_has_its_own_status() {
 
 fn h(order: u16, amplitude_nm: f32, phase_rad: f32) -> sd_harmonic {
     sd_harmonic { order, amplitude_nm, phase_rad }
+}
+
+/// `patent-motor-real`'s parts per ampere (`stepdamp motor ripple`'s `per_amp_d`, `per_amp_q`
+/// rounded), N·m/A.
+const PER_AMP_D: [sd_harmonic; 2] = [
+    sd_harmonic { order: 4, amplitude_nm: 0.0145, phase_rad: 0.35 },
+    sd_harmonic { order: 2, amplitude_nm: 0.0045, phase_rad: 0.0 },
+];
+const PER_AMP_Q: [sd_harmonic; 2] = [
+    sd_harmonic { order: 4, amplitude_nm: 0.0083, phase_rad: -1.2 },
+    sd_harmonic { order: 2, amplitude_nm: 0.0045, phase_rad: 1.5708 },
+];
+
+#[test]
+fn the_ripple_that_grows_with_the_current_steps_exactly_like_the_core_in_every_mode() {
+    let core = |t: &[sd_harmonic]| -> Vec<Harmonic> {
+        t.iter().map(|h| Harmonic { order: h.order, amplitude_nm: h.amplitude_nm, phase_rad: h.phase_rad }).collect()
+    };
+    let (d, q) = (core(&PER_AMP_D), core(&PER_AMP_Q));
+    for (mode, mode_c) in [(Mode::OpenLoop, SD_MODE_OPEN_LOOP), (Mode::Servo, SD_MODE_SERVO)] {
+        for (comp, comp_c) in
+            [(Compensation::Patent, SD_COMPENSATION_PATENT), (Compensation::Estimated, SD_COMPENSATION_ESTIMATED)]
+        {
+            let mut c = patent(mode_c, comp_c);
+            c.motor.ripple_per_amp_d = PER_AMP_D.as_ptr();
+            c.motor.ripple_per_amp_d_count = 2;
+            c.motor.ripple_per_amp_q = PER_AMP_Q.as_ptr();
+            c.motor.ripple_per_amp_q_count = 2;
+            let mut params = Params::patent_motor(mode, comp);
+            params.motor.current_ripple = CurrentRipple { per_amp_d: &d, per_amp_q: &q };
+            same_as_core_with(&c, &params);
+            // And the ripple is used: the configuration differs from the one without it.
+            assert_ne!(Config::new(&params).unwrap(), Config::new(&Params::patent_motor(mode, comp)).unwrap());
+        }
+    }
+}
+
+#[test]
+fn a_ripple_table_whose_pointer_and_count_disagree_or_whose_values_are_out_of_range_is_refused() {
+    let base = patent(SD_MODE_OPEN_LOOP, SD_COMPENSATION_PATENT);
+    let mut p = base;
+    p.motor.ripple_per_amp_d_count = 1;
+    assert_eq!(init(&p).0, SD_ERR_RIPPLE_TABLE, "NULL with a count");
+    let mut p = base;
+    p.motor.ripple_per_amp_q = PER_AMP_Q.as_ptr();
+    assert_eq!(init(&p).0, SD_ERR_RIPPLE_TABLE, "a pointer with a count of 0");
+    let mut p = base;
+    p.motor.ripple_per_amp_q = PER_AMP_Q.as_ptr();
+    p.motor.ripple_per_amp_q_count = SD_MAX_HARMONICS + 1;
+    assert_eq!(init(&p).0, SD_ERR_RIPPLE_TABLE, "beyond capacity");
+    for (bad, want) in [(h(4, -0.01, 0.0), SD_ERR_RIPPLE_AMPLITUDE), (h(4, 0.01, f32::NAN), SD_ERR_RIPPLE_PHASE)] {
+        let table = [bad];
+        let mut p = base;
+        p.motor.ripple_per_amp_d = table.as_ptr();
+        p.motor.ripple_per_amp_d_count = 1;
+        assert_eq!(init(&p).0, want, "{bad:?}");
+    }
 }
 
 #[test]

@@ -12,8 +12,8 @@ fn patent_motor_in_c_layout_converts_back_to_the_cores_reference_params() {
             // SAFETY-free copy of the static table the pointer refers to.
             let harmonics: &[sd_harmonic] = &PATENT_DETENT_C;
             assert_eq!(c.motor.detent, harmonics.as_ptr());
-            let mut table = [Harmonic::default(); SD_MAX_HARMONICS as usize];
-            let back = params_from_c(&c, harmonics, &mut table).unwrap();
+            let mut tables = [[Harmonic::default(); SD_MAX_HARMONICS as usize]; 3];
+            let back = params_from_c(&c, [harmonics, &[], &[]], &mut tables).unwrap();
             assert_eq!(back, Params::patent_motor(mode, comp));
         }
     }
@@ -25,8 +25,8 @@ fn out_of_range_enum_integers_are_statuses() {
     assert_eq!(patent_motor_c(SD_MODE_SERVO, SD_COMPENSATION_TABLE + 1).unwrap_err(), SD_ERR_INVALID_COMPENSATION);
     let mut c = patent_motor_c(SD_MODE_SERVO, SD_COMPENSATION_OFF).unwrap();
     c.drive.topology = 7;
-    let mut table = [Harmonic::default(); SD_MAX_HARMONICS as usize];
-    assert_eq!(params_from_c(&c, &[], &mut table).unwrap_err(), SD_ERR_INVALID_TOPOLOGY);
+    let mut tables = [[Harmonic::default(); SD_MAX_HARMONICS as usize]; 3];
+    assert_eq!(params_from_c(&c, [&[], &[], &[]], &mut tables).unwrap_err(), SD_ERR_INVALID_TOPOLOGY);
 }
 
 #[test]
