@@ -5,8 +5,10 @@
 //! `R > 0`: the backward table), as a user with the plan of `stepdamp identify plan --accel`
 //! would do it (`plan_captures`, trials from the user's model, not the printer's motor):
 //!
-//! 1. Two captures of the planned baseline: if they differ beyond their noise, every capture
-//!    runs at [`FASTER_SPEED_REV_S`] instead ([`repeatable`]). Harmonic 1 always does.
+//! 1. The speed: a planned baseline at 2 rev/s and one at [`FASTER_SPEED_REV_S`], each way;
+//!    a speed *clips* if one reaches the sensor's ±2 g in its analysed window ([`clips`]).
+//!    Harmonic 1 runs at the faster speed, 2 and 4 at the planned one, each at the other if
+//!    its own clips and the other does not.
 //! 2. For each harmonic of [`HARMONICS`], largest response first ([`order`]), the first step
 //!    ([`first_step`]): the baseline, averaged over as many captures as its size over the
 //!    noise asks ([`repeats`]); the planned trial (a second, smaller trial if it moved the
@@ -23,10 +25,11 @@
 //! as the route averaged that harmonic.
 
 use stepdamp_accel::influence::{harmonic_response, influence, table_item, table_shift};
-use stepdamp_accel::plan::{CapturePlanOptions, plan_captures};
+use stepdamp_accel::plan::{CapturePlanOptions, MAX_TRIAL_MAG, plan_captures};
 use stepdamp_accel::{AccelCapture, Axis, Complex, Gcode, Response, TrialSweep, read_captures};
 use stepdamp_export::Correction;
 use stepdamp_export::prusa::{Firmware, SHIFT_LIMIT, Spectrum, fit};
+use stepdamp_printer::printer::LSB_10_BIT_2G;
 use stepdamp_printer::{SimulatedPrinter, family_printer};
 use stepdamp_sim::Profile;
 
@@ -45,9 +48,6 @@ const SNR_K: f64 = 25.0;
 const MAX_TRIAL_EFFECT: f64 = 4.0;
 /// The second trial's size against the first, after a trial out of the linear range.
 const SECOND_TRIAL_FACTOR: f64 = 0.25;
-/// How far apart (in units of their combined 95 % radius) two captures of the same setting
-/// may be and still count as the same motion.
-const REPEAT_TOLERANCE: f64 = 4.0;
 /// The speed of harmonic 1's captures, and of every capture when the planned one does not
 /// repeat (rev/s): the electrical frequency at 130 Hz, 30 % above the planned 100 Hz;
 /// harmonic 4 then at 520 Hz, inside the plan's band (0.4 of 1344 Hz).
@@ -171,13 +171,14 @@ fn measure(b: &mut Bench, g: Gcode, h: u32, n: usize) -> Response {
     mean(&ys)
 }
 
-/// The trial `g` measured as often as [`repeats`] asks for the change it makes to `y0`
-/// (the influence coefficient then within `1/K` of itself, 95 %).
-fn measure_trial(b: &mut Bench, g: Gcode, h: u32, y0: &Response) -> Response {
+/// The trial `g` measured at least `n` times, and as often as [`repeats`] asks for the
+/// change it makes to `y0` (the influence coefficient then within `1/K` of itself, 95 %);
+/// returns the mean and the count that change asks for.
+fn measure_trial(b: &mut Bench, g: Gcode, h: u32, y0: &Response, n: usize) -> (Response, usize) {
     let first = measure(b, g, h, 1);
-    let change = Response { value: first.value - y0.value, ..first };
-    let more: Vec<Response> = (1..repeats(&change)).map(|_| measure(b, g, h, 1)).collect();
-    mean(&[&[first][..], &more].concat())
+    let needed = repeats(&Response { value: first.value - y0.value, ..first });
+    let more: Vec<Response> = (1..needed.max(n)).map(|_| measure(b, g, h, 1)).collect();
+    (mean(&[&[first][..], &more].concat()), needed)
 }
 
 /// Puts `in_use + shift` as item `h` of `g`'s table, the shift scaled down (bisection) if the
@@ -206,24 +207,36 @@ fn put(b: &mut Bench, g: Gcode, h: u32, in_use: Complex, shift: Complex) -> (Com
 fn first_step(b: &mut Bench, h: u32, (base, trial): (Gcode, Gcode)) -> Route {
     let scale = b.printer.correction.firmware.scale();
     let in_use = b.item(base, h);
-    let first = measure(b, base, h, 1);
-    let n = repeats(&first);
-    let y0 = mean(&[&[first][..], &(1..n).map(|_| measure(b, base, h, 1)).collect::<Vec<_>>()].concat());
+    let mut ys0 = vec![measure(b, base, h, 1)];
+    let mut n = repeats(&ys0[0]);
     let Gcode::ParamSweep { axis, speed, revs, trial: t } = trial else { unreachable!("M973") };
-    let mut u_t = table_shift(t.mag_start, t.pha_start, scale);
-    let mut y1 = measure_trial(b, trial, h, &y0);
-    let mut trials = 1;
-    if (y1.value - y0.value).abs() > MAX_TRIAL_EFFECT * y0.value.abs() {
-        // The trial moved the response far more than by its own size: the rotor left its
-        // linear range (an open-loop resonance), or the model's correction is far larger than
-        // this motor's. The second trial: a quarter of the first.
-        let mag = t.mag_start * SECOND_TRIAL_FACTOR;
-        u_t = table_shift(mag, t.pha_start, scale);
-        let t2 = TrialSweep { mag_start: mag, mag_end: mag, ..t };
-        y1 = measure_trial(b, Gcode::ParamSweep { axis, speed, revs, trial: t2 }, h, &y0);
-        trials = 2;
-    }
-    let inf = influence(&y0, &y1, u_t).unwrap();
+    let mut trials = 0;
+    let mut mag = t.mag_start;
+    let (y0, y1) = loop {
+        ys0.extend((ys0.len()..n).map(|_| measure(b, base, h, 1)).collect::<Vec<_>>());
+        let y0 = mean(&ys0);
+        let g = Gcode::ParamSweep { axis, speed, revs, trial: TrialSweep { mag_start: mag, mag_end: mag, ..t } };
+        let (y1, needed) = measure_trial(b, g, h, &y0, n);
+        trials += 1;
+        let change = (y1.value - y0.value).abs();
+        if trials == 2 {
+            break (y0, y1);
+        }
+        if change > MAX_TRIAL_EFFECT * y0.value.abs() {
+            // The trial moved the response far more than by its own size: the rotor left its
+            // linear range (an open-loop resonance), or the model's correction is far larger
+            // than this motor's. The second trial: a quarter of the first.
+            mag *= SECOND_TRIAL_FACTOR;
+        } else if change <= y0.radius95.hypot(y1.radius95) {
+            // Within the noise: the second trial four times larger (at most the plan's
+            // largest), both measured as often as the change asks.
+            mag = (mag / SECOND_TRIAL_FACTOR).min(MAX_TRIAL_MAG);
+            n = n.max(needed);
+        } else {
+            break (y0, y1);
+        }
+    };
+    let inf = influence(&y0, &y1, table_shift(mag, t.pha_start, scale)).unwrap();
     let (u1, table_full) = put(b, base, h, in_use, inf.cancelling);
     let y2 = measure(b, base, h, n);
     let secant = (y2.value - y0.value) / u1;
@@ -255,14 +268,16 @@ fn second_step(b: &mut Bench, r: &mut Route) {
     }
 }
 
-/// Whether two captures of `base` with the same table agree at every harmonic within
-/// [`REPEAT_TOLERANCE`] times their noise (`√(r₁² + r₂²)`, the 95 % radii).
-fn repeatable(b: &mut Bench, base: Gcode) -> bool {
-    let (c1, c2) = (b.capture(base), b.capture(base));
-    HARMONICS.iter().all(|&h| {
-        let (y1, y2) = (b.response(&c1, h), b.response(&c2, h));
-        (y1.value - y2.value).abs() <= REPEAT_TOLERANCE * y1.radius95.hypot(y2.radius95)
-    })
+/// Whether a capture of `base` reaches the accelerometer's full scale (±2 g, the 10-bit
+/// counts −512 and 511) in its analysed window (the markers clip on every printer): its
+/// responses are then not the head's.
+fn clips(b: &mut Bench, base: Gcode) -> bool {
+    let full = 511.0 * LSB_10_BIT_2G - 0.5 * LSB_10_BIT_2G;
+    let c = b.capture(base);
+    let t = c.annotations.times;
+    let fs = c.annotations.sampling_freq_hz;
+    let window = (t.signal_start * fs) as usize..(t.signal_end * fs) as usize;
+    c.samples[window].iter().any(|y| y.abs() >= full)
 }
 
 /// The harmonics of `HARMONICS` in the order to correct them in the direction of `base`: the
@@ -305,23 +320,27 @@ fn printer_score(seed: u64) -> (u64, f64, bool, String) {
         rotor_hz(p)
     );
     let run_a = b.printer.run_current_a;
-    // Harmonic 1 always at the faster speed: at 2 rev/s it is at 100 Hz, on the rotor's own
+    let planned = CapturePlanOptions::new(Axis::X, 50).max_speed_rev_s;
+    // A speed clips if a baseline there reaches ±2 g in either direction (a harmonic on the
+    // belt mode or the rotor's resonance): its responses are not the head's.
+    let mut clipped = |v: f64| plan(&model, 4, run_a, v).iter().any(|&(base, _)| clips(&mut b, base));
+    let (clips_planned, clips_faster) = (clipped(planned), clipped(FASTER_SPEED_REV_S));
+    // Harmonic 1 at the faster speed: at 2 rev/s it is at 100 Hz, on the rotor's own
     // resonance (52–97 Hz over the family), where its ripple swings the rotor beyond the
-    // linear range.
-    let speed = |h: u32, v: f64| if h == 1 { FASTER_SPEED_REV_S } else { v };
-    let plan_at = |v: f64| -> Vec<_> { HARMONICS.iter().map(|&h| plan(&model, h, run_a, speed(h, v))).collect() };
-    let mut plans = plan_at(CapturePlanOptions::new(Axis::X, 50).max_speed_rev_s);
-    let mut faster = false;
-    if !(repeatable(&mut b, plans[0][0].0) && repeatable(&mut b, plans[0][1].0)) {
-        // The motion does not repeat from capture to capture at the planned speed: the rotor
-        // runs where open loop is barely stable (its resonance on the magnetic stiffness
-        // near the electrical frequency). All captures at the faster speed.
-        plans = plan_at(FASTER_SPEED_REV_S);
-        faster = true;
-    }
-    let why = if faster { " (the planned 2 rev/s did not repeat)" } else { "" };
+    // linear range. Each harmonic at its own speed unless that one clips and the other not.
+    let speed = |h: u32| {
+        let (first, other, clips_first, clips_other) = if h == 1 {
+            (FASTER_SPEED_REV_S, planned, clips_faster, clips_planned)
+        } else {
+            (planned, FASTER_SPEED_REV_S, clips_planned, clips_faster)
+        };
+        if clips_first && !clips_other { other } else { first }
+    };
+    let plans: Vec<_> = HARMONICS.iter().map(|&h| plan(&model, h, run_a, speed(h))).collect();
+    let clip_note =
+        format!(" (clips at ±2 g: {planned} rev/s {clips_planned}, {FASTER_SPEED_REV_S} rev/s {clips_faster})");
     let speeds: Vec<String> = plans.iter().map(|p| p[0].0.to_string()).collect();
-    let _ = writeln!(text, "  baselines {speeds:?}{why}");
+    let _ = writeln!(text, "  baselines {speeds:?}{clip_note}");
     let untouched = b.printer.clone();
     let mut routes = Vec::new();
     for dir in [0, 1] {
