@@ -258,7 +258,7 @@ fn rotor_angle(cfg: &Config, st: &mut State, i_ab: Ab, sin: f32, cos: f32) -> Co
 /// `(I_hold, 0)`, servo `(0, i_q,ctrl)`), used only by a model with current parts
 /// ([`crate::ripple`]).
 #[inline(always)]
-fn compensation_current(cfg: &Config, st: &State, at: &CompensationAngle, op: Dq) -> f32 {
+fn compensation_current(cfg: &Config, st: &mut State, at: &CompensationAngle, op: Dq) -> f32 {
     let omega_e = st.speed_cmd_rad_s * f32::from(cfg.pole_pairs);
     let (cs, cc, sd, cd) = (at.sin, at.cos, at.sin_delta, at.cos_delta);
     // The closed current loop is `1/(1 + (s/ωc)·e^{s·Td})`: command the compensation
@@ -279,6 +279,10 @@ fn compensation_current(cfg: &Config, st: &State, at: &CompensationAngle, op: Dq
     // torque per ampere the compensation current itself makes there (docs/design.md#real-motors-flux-harmonics).
     let (i_d, i_q) = (op.d * cd - op.q * sd, op.d * sd + op.q * cd);
     let v = cfg.ripple.eval(cs, cc, i_d, i_q);
+    if at.observed {
+        // The back-EMF's lead at this rotor angle, for the observer's next period.
+        st.observer.emf_angle_error_rad = -v.per_amp_d / crate::at_least(1.0 - v.per_amp_q, crate::ripple::MIN_DIVISOR);
+    }
     at.km_gain * lead(v.current_a, v.slope, v.curvature) / crate::ripple::divisor(&v, sd, cd)
 }
 
