@@ -13,10 +13,10 @@
 //! And the compensation with it: an open-loop sweep near each resonance (orders 4, 2, 1,
 //! five speeds ±10 %, the peak-to-peak velocity error) with the identified profile as the
 //! controller reaches ≥ 80 % of the dB reduction the true profile gets at orders 4 and 1 with
-//! the patent's law at `θ_cmd`; the estimated mode with it gets ≥ 80 % of the dB it gets with
-//! the true profile at every resonance, the order-2 one included (with flux harmonics also a
-//! parametric resonance). The issue asks for ≥ 10× there; the estimated law falls short of
-//! that on some of these motors with the true profile too (printed, not asserted).
+//! the patent's law at `θ_cmd`; the estimated mode with it lowers every resonance ≥ 10×, the
+//! order-2 one included (with flux harmonics also a parametric resonance), except where the
+//! estimated law falls short of 10× with the true profile too: there it must get ≥ 80 % of
+//! the true profile's dB.
 //!
 //! CI runs [`CI_MOTORS`] motors; all 50: `cargo test --release -p stepdamp-identify --test
 //! real_family -- --ignored --nocapture`.
@@ -121,8 +121,8 @@ fn peaks(motor: &Profile, controller: &Profile, k: u16, comps: &[Compensation]) 
 
 /// The compensation check of the module documentation: the identified profile's share of the
 /// true profile's dB reduction at orders 4 and 1 (patent's law), the estimated mode's
-/// reduction (×, orders 4, 2, 1) with the identified profile, and its share of the same with
-/// the true profile in dB (worst order). Returns `(worst share, worst estimated ×, worst ratio, a line)`.
+/// reduction (×, orders 4, 2, 1) with the identified profile, and, over the orders where
+/// that is below 10×, its share in dB of the true profile's (∞ when every order reaches 10×). Returns `(worst share, worst estimated ×, worst ratio, a line)`.
 fn compensation(truth: &Profile, id: &Profile) -> (f64, f64, f64, String) {
     use Compensation::{Estimated, Off, Patent};
     let (mut share, mut est, mut ratio, mut line) = (f64::INFINITY, f64::INFINITY, f64::INFINITY, String::new());
@@ -131,7 +131,10 @@ fn compensation(truth: &Profile, id: &Profile) -> (f64, f64, f64, String) {
         let with_truth = peaks(truth, truth, k, &[Off, Patent, Estimated]);
         let (x_est, x_est_true) = (with_id[0] / with_id[2], with_truth[0] / with_truth[2]);
         est = est.min(x_est);
-        ratio = ratio.min(x_est.log10() / x_est_true.log10());
+        // Met when ≥ 10× (the issue's bound) or, where the law falls short of that with the
+        // true profile too, ≥ 80 % of the true profile's dB.
+        let met = if x_est >= 10.0 { f64::INFINITY } else { x_est.log10() / x_est_true.log10() };
+        ratio = ratio.min(met);
         line += &format!(" k{k}: estimated {x_est:.1}x (true profile {x_est_true:.1}x)");
         if k != 2 {
             let (db_id, db_true) =
@@ -152,7 +155,7 @@ struct Outcome {
     share: f64,
     /// Worst reduction of the estimated mode (×, orders 4, 2, 1).
     estimated: f64,
-    /// Worst share of that reduction in dB of the true profile's.
+    /// Worst share in dB of the true profile's reduction over the orders below 10× (∞: none).
     estimated_ratio: f64,
     /// The same three for the patent's route.
     patent_route: (f64, f64, f64),
@@ -217,10 +220,12 @@ fn family(seeds: std::ops::Range<u64>) {
     );
     let ratio = results.iter().map(|r| r.estimated_ratio).fold(f64::INFINITY, f64::min);
     let short = results.iter().filter(|r| r.estimated < 10.0).count();
-    println!(
-        "estimated mode with the identified profile: worst {:.0} % of the true profile's dB; below 10x on {short} of {n} motors",
-        100.0 * ratio
-    );
+    if short > 0 {
+        println!(
+            "estimated mode with the identified profile: below 10x on {short} of {n} motors, there worst {:.0} % of the true profile's dB",
+            100.0 * ratio
+        );
+    }
     summary(
         "the patent's route (servo runs only)",
         results.iter().map(|r| r.patent_route.0).collect(),
@@ -230,12 +235,12 @@ fn family(seeds: std::ops::Range<u64>) {
     for r in &results {
         assert!(r.ripple.0 <= 1.0, "motor {}: {:.2} of the tolerance at {}", r.seed, r.ripple.0, r.ripple.1);
         assert!(r.share >= 0.8, "motor {}: {:.0} % of the true profile's dB reduction", r.seed, 100.0 * r.share);
-        // The estimated mode itself falls short of 10x on some real motors even with the true
-        // profile (the load-angle observer assumes a sine back-EMF; docs/identification.md):
-        // what identification must do is not lose against the true profile.
+        // The estimated law falls short of 10x on a few real motors even with the true profile
+        // (docs/identification.md#the-real-motor-family): there identification must not lose
+        // against the true profile.
         assert!(
             r.estimated_ratio >= 0.8,
-            "motor {}: the estimated mode with the identified profile gets {:.0} % of the true profile's dB",
+            "motor {}: the estimated mode with the identified profile is below 10x and gets {:.0} % of the true profile's dB",
             r.seed,
             100.0 * r.estimated_ratio
         );
