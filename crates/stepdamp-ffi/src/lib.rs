@@ -186,15 +186,16 @@ pub unsafe extern "C" fn sd_config_init(params: *const sd_params, cfg: *mut sd_c
     let detent_errors =
         (SD_ERR_DETENT_COUNT_BEYOND_CAPACITY, SD_ERR_DETENT_NULL_WITH_COUNT, SD_ERR_DETENT_POINTER_WITHOUT_COUNT);
     let ripple_errors = (SD_ERR_RIPPLE_TABLE, SD_ERR_RIPPLE_TABLE, SD_ERR_RIPPLE_TABLE);
-    // SAFETY (the three): the caller promises each pointer is NULL or points to its count of
-    // readable harmonics.
-    let harmonics = match unsafe {
+    // SAFETY: the caller promises each pointer is NULL or points to its count of readable
+    // harmonics (the function's safety section).
+    let tables = unsafe {
         (
             c_table(m.detent, m.detent_count, detent_errors),
             c_table(m.ripple_per_amp_d, m.ripple_per_amp_d_count, ripple_errors),
             c_table(m.ripple_per_amp_q, m.ripple_per_amp_q_count, ripple_errors),
         )
-    } {
+    };
+    let harmonics = match tables {
         (Ok(a), Ok(b), Ok(c)) => [a, b, c],
         (Err(e), _, _) | (_, Err(e), _) | (_, _, Err(e)) => return e,
     };

@@ -162,7 +162,7 @@ const PER_AMP_D: [sd_harmonic; 2] = [
 ];
 const PER_AMP_Q: [sd_harmonic; 2] = [
     sd_harmonic { order: 4, amplitude_nm: 0.0083, phase_rad: -1.2 },
-    sd_harmonic { order: 2, amplitude_nm: 0.0045, phase_rad: 1.5708 },
+    sd_harmonic { order: 2, amplitude_nm: 0.0045, phase_rad: core::f32::consts::FRAC_PI_2 },
 ];
 
 #[test]
