@@ -27,11 +27,13 @@
 //!
 //! [`open_loop`] is its counterpart for the sensorless route: an open-loop drive
 //! (PWM bridge, PI current loop) that performs the sensorless plan CSV and logs currents and
-//! applied voltages.
+//! applied voltages; [`servo_real`] the servo drive of a real motor (flux harmonics, windings,
+//! applied voltages) that performs the encoder plan CSV.
 
 #![allow(dead_code)] // each test binary uses a part of it
 
 pub mod open_loop;
+pub mod servo_real;
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
