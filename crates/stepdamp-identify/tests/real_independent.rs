@@ -34,7 +34,7 @@
 mod independent;
 
 use independent::servo_real::{RealMotor, ServoDrive, parse_servo_plan, run};
-use independent::{Friction, Motor};
+use independent::{Motor, stress_friction};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -63,14 +63,7 @@ fn real_motor(seed: u64, base: &Profile) -> (RealMotor, ServoDrive) {
     let detent = [(4u16, p4), (2, p2), (1, p1)].iter().map(|&(k, p)| (k, rng.random_range(0.004..0.030), p)).collect();
     let g = rng.random_range(-0.05..0.05);
     let flux = vec![(3, rng.random_range(0.0..0.02), a3), (5, rng.random_range(0.0..0.01), a5)];
-    let friction = if seed % 2 == 0 {
-        Friction::SmoothCreep
-    } else {
-        Friction::Stribeck {
-            fs_static_nm: fs * rng.random_range(1.2..1.8),
-            stribeck_rad_s: rng.random_range(0.01..0.05),
-        }
-    };
+    let friction = stress_friction(seed, fs, &mut rng);
     let mech = Motor {
         nr: base.motor.pole_pairs,
         km: base.motor.km_nm_per_a,

@@ -128,14 +128,7 @@ pub fn stress_motor(seed: u64) -> (Motor, Drive) {
     let j = 4.0e-5 * rng.random_range(0.5..3.0);
     let fs = rng.random_range(0.005..0.020);
     let detent = [1u16, 2, 4].iter().map(|&k| (k, rng.random_range(0.004..0.030), rng.random_range(-PI..PI))).collect();
-    let friction = if seed % 2 == 0 {
-        Friction::SmoothCreep
-    } else {
-        Friction::Stribeck {
-            fs_static_nm: fs * rng.random_range(1.2..1.8),
-            stribeck_rad_s: rng.random_range(0.01..0.05),
-        }
-    };
+    let friction = stress_friction(seed, fs, &mut rng);
     let creep_rad_s = rng.random_range(0.002..0.01);
     let bandwidth_hz = rng.random_range(40.0..80.0);
     let motor = Motor { nr: 50, km: 0.3, j, d: 1.0e-3, fs, creep_rad_s, friction, detent, cpr: 4000 };
@@ -148,6 +141,20 @@ pub fn stress_motor(seed: u64) -> (Motor, Drive) {
         current_noise_a: 0.01,
     };
     (motor, drive)
+}
+
+/// The stress family's friction law for motor `seed` at sliding level `fs` (N·m): smooth
+/// creep for even seeds; Stribeck for odd ones, break-away 1.2–1.8× `fs`, Stribeck speed
+/// 0.01–0.05 rad/s, drawn from `rng`.
+pub fn stress_friction(seed: u64, fs: f64, rng: &mut ChaCha8Rng) -> Friction {
+    if seed % 2 == 0 {
+        Friction::SmoothCreep
+    } else {
+        Friction::Stribeck {
+            fs_static_nm: fs * rng.random_range(1.2..1.8),
+            stribeck_rad_s: rng.random_range(0.01..0.05),
+        }
+    }
 }
 
 /// One run: `speed_rad_s` (sign = direction) held for `steady_s` after 50 ms at rest and a

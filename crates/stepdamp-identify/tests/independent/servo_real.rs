@@ -165,11 +165,10 @@ pub fn parse_servo_plan(text: &str) -> Result<Vec<ServoRow>, String> {
         .collect()
 }
 
-/// The plant state: phase currents, angle, speed.
+/// The plant state: phase currents `(i_a, i_b)` (A), angle (rad), speed (rad/s).
 #[derive(Clone, Copy, Debug)]
 struct State {
-    ia: f64,
-    ib: f64,
+    i: (f64, f64),
     theta: f64,
     w: f64,
 }
@@ -183,12 +182,12 @@ impl RealMotor {
         let (ea, eb) = (self.mech.km * x.w * da, self.mech.km * x.w * db);
         let decay = (-self.r * h / self.l).exp();
         let settle = |i: f64, v: f64, e: f64| (v - e) / self.r + (i - (v - e) / self.r) * decay;
-        let (ia, ib) = (settle(x.ia, v.0, ea), settle(x.ib, v.1, eb));
-        let motor = self.mech.km * (0.5 * (x.ia + ia) * da + 0.5 * (x.ib + ib) * db);
+        let (ia, ib) = (settle(x.i.0, v.0, ea), settle(x.i.1, v.1, eb));
+        let motor = self.mech.km * (0.5 * (x.i.0 + ia) * da + 0.5 * (x.i.1 + ib) * db);
         let rhs = motor - self.mech.detent(te_mid / nr);
         x.w = implicit_speed(&self.mech, x.w, rhs, h);
         x.theta += h * x.w;
-        (x.ia, x.ib) = (ia, ib);
+        x.i = (ia, ib);
     }
 }
 
@@ -205,7 +204,7 @@ pub fn run(m: &RealMotor, d: &ServoDrive, p: &ServoRow, seed: u64) -> String {
     let wc = TAU * d.current_hz;
     let (kpc, kic) = (d.l_nominal * wc, d.r_nominal * wc);
     let h = ts / f64::from(SUB_STEPS);
-    let mut x = State { ia: 0.0, ib: 0.0, theta: rng.random_range(0.0..q), w: 0.0 };
+    let mut x = State { i: (0.0, 0.0), theta: rng.random_range(0.0..q), w: 0.0 };
     let fb = |th: f64| ((th / q).floor() + 0.5) * q;
     let theta0 = fb(x.theta);
     let (mut fb_prev, mut omega_fb, mut integ) = (theta0, 0.0, 0.0);
@@ -221,8 +220,8 @@ pub fn run(m: &RealMotor, d: &ServoDrive, p: &ServoRow, seed: u64) -> String {
         let theta_fb = fb(x.theta);
         omega_fb += filt * ((theta_fb - fb_prev) / ts - omega_fb);
         fb_prev = theta_fb;
-        let ia_m = x.ia + d.noise_a * gauss(&mut rng);
-        let ib_m = x.ib + d.noise_a * gauss(&mut rng);
+        let ia_m = x.i.0 + d.noise_a * gauss(&mut rng);
+        let ib_m = x.i.1 + d.noise_a * gauss(&mut rng);
         let te_fb = nr * theta_fb;
         let (s, c) = te_fb.sin_cos();
         let (id_m, iq_m) = (ia_m * c + ib_m * s, -ia_m * s + ib_m * c);
