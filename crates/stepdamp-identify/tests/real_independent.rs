@@ -217,6 +217,31 @@ fn family(seeds: std::ops::Range<u64>, j: BaseInertia) {
 }
 
 #[test]
+fn the_generators_torque_and_back_emf_come_from_its_flux_linkage_and_balance_energy() {
+    let base = Profile::preset("patent-motor").unwrap();
+    for seed in 0..4 {
+        let (m, _) = real_motor(seed, &base);
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        for _ in 0..50 {
+            let (te, w, ia, ib) = (
+                rng.random_range(-PI..PI),
+                rng.random_range(-30.0..30.0),
+                rng.random_range(-2.0..2.0),
+                rng.random_range(-2.0..2.0),
+            );
+            // λ' is the derivative of λ (central difference, error ~1e-10).
+            let (d, (pa, pb), (ma, mb)) = (1e-5, m.flux_linkage(te + 1e-5), m.flux_linkage(te - 1e-5));
+            let (da, db) = m.flux_slopes(te);
+            assert!((da - (pa - ma) / (2.0 * d)).abs() < 1e-8 && (db - (pb - mb) / (2.0 * d)).abs() < 1e-8);
+            // The power the back-EMF takes is the motor torque times the speed.
+            let (ea, eb) = m.back_emf(te, w);
+            let motor = m.torque(te, ia, ib) + m.mech.detent(te / f64::from(m.mech.nr));
+            assert!((ea * ia + eb * ib - motor * w).abs() < 1e-12 * (1.0 + (motor * w).abs()));
+        }
+    }
+}
+
+#[test]
 fn independent_real_motors_ripple_is_identified_at_every_operating_point_with_the_true_inertia() {
     family(0..ALL_MOTORS, BaseInertia::True);
 }

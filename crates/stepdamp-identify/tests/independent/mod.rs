@@ -96,7 +96,8 @@ impl Motor {
         (self.friction(w + h) - self.friction(w - h)) / (2.0 * h)
     }
 
-    fn detent(&self, theta: f64) -> f64 {
+    /// `Σ A_k sin(k·Nr·θ + φ_k)` at the mechanical angle `theta` (the torque on the rotor is its negative), N·m.
+    pub fn detent(&self, theta: f64) -> f64 {
         let te = f64::from(self.nr) * theta;
         self.detent.iter().map(|&(k, a, p)| a * (f64::from(k) * te + p).sin()).sum()
     }

@@ -57,6 +57,17 @@ pub struct RealMotor {
 }
 
 impl RealMotor {
+    /// `(λ_a, λ_b)`: the per-unit flux linkages at `θe` (module documentation).
+    pub fn flux_linkage(&self, te: f64) -> (f64, f64) {
+        let (mut la, mut lb) = (te.cos(), te.sin());
+        for &(n, h, a) in &self.flux {
+            let nf = f64::from(n);
+            la += h * (nf * te + a).cos();
+            lb += h * (nf * te + a - nf * FRAC_PI_2).cos();
+        }
+        (la, (1.0 + self.g) * lb)
+    }
+
     /// `(λ_a', λ_b')`: the derivatives of the per-unit flux linkages by `θe`.
     pub fn flux_slopes(&self, te: f64) -> (f64, f64) {
         let (mut da, mut db) = (-te.sin(), te.cos());
@@ -66,6 +77,12 @@ impl RealMotor {
             db -= nf * h * (nf * te + a - nf * FRAC_PI_2).sin();
         }
         (da, (1.0 + self.g) * db)
+    }
+
+    /// Back-EMF `(e_a, e_b) = Km·ω·(λ_a', λ_b')` at `θe` and speed `ω` (rad/s), V.
+    pub fn back_emf(&self, te: f64, w: f64) -> (f64, f64) {
+        let (da, db) = self.flux_slopes(te);
+        (self.mech.km * w * da, self.mech.km * w * db)
     }
 
     /// Torque on the rotor at `θe` and phase currents `i_a`, `i_b` (motor and detent), N·m.
@@ -179,7 +196,7 @@ impl RealMotor {
         let nr = f64::from(self.mech.nr);
         let te_mid = nr * (x.theta + 0.5 * h * x.w);
         let (da, db) = self.flux_slopes(te_mid);
-        let (ea, eb) = (self.mech.km * x.w * da, self.mech.km * x.w * db);
+        let (ea, eb) = self.back_emf(te_mid, x.w);
         let decay = (-self.r * h / self.l).exp();
         let settle = |i: f64, v: f64, e: f64| (v - e) / self.r + (i - (v - e) / self.r) * decay;
         let (ia, ib) = (settle(x.i.0, v.0, ea), settle(x.i.1, v.1, eb));
