@@ -27,11 +27,13 @@
 //!
 //! [`open_loop`] is its counterpart for the sensorless route: an open-loop drive
 //! (PWM bridge, PI current loop) that performs the sensorless plan CSV and logs currents and
-//! applied voltages.
+//! applied voltages; [`servo_real`] the servo drive of a real motor (flux harmonics, windings,
+//! applied voltages) that performs the encoder plan CSV.
 
 #![allow(dead_code)] // each test binary uses a part of it
 
 pub mod open_loop;
+pub mod servo_real;
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -94,7 +96,8 @@ impl Motor {
         (self.friction(w + h) - self.friction(w - h)) / (2.0 * h)
     }
 
-    fn detent(&self, theta: f64) -> f64 {
+    /// `Σ A_k sin(k·Nr·θ + φ_k)` at the mechanical angle `theta` (the torque on the rotor is its negative), N·m.
+    pub fn detent(&self, theta: f64) -> f64 {
         let te = f64::from(self.nr) * theta;
         self.detent.iter().map(|&(k, a, p)| a * (f64::from(k) * te + p).sin()).sum()
     }
@@ -126,14 +129,7 @@ pub fn stress_motor(seed: u64) -> (Motor, Drive) {
     let j = 4.0e-5 * rng.random_range(0.5..3.0);
     let fs = rng.random_range(0.005..0.020);
     let detent = [1u16, 2, 4].iter().map(|&k| (k, rng.random_range(0.004..0.030), rng.random_range(-PI..PI))).collect();
-    let friction = if seed % 2 == 0 {
-        Friction::SmoothCreep
-    } else {
-        Friction::Stribeck {
-            fs_static_nm: fs * rng.random_range(1.2..1.8),
-            stribeck_rad_s: rng.random_range(0.01..0.05),
-        }
-    };
+    let friction = stress_friction(seed, fs, &mut rng);
     let creep_rad_s = rng.random_range(0.002..0.01);
     let bandwidth_hz = rng.random_range(40.0..80.0);
     let motor = Motor { nr: 50, km: 0.3, j, d: 1.0e-3, fs, creep_rad_s, friction, detent, cpr: 4000 };
@@ -146,6 +142,20 @@ pub fn stress_motor(seed: u64) -> (Motor, Drive) {
         current_noise_a: 0.01,
     };
     (motor, drive)
+}
+
+/// The stress family's friction law for motor `seed` at sliding level `fs` (N·m): smooth
+/// creep for even seeds; Stribeck for odd ones, break-away 1.2–1.8× `fs`, Stribeck speed
+/// 0.01–0.05 rad/s, drawn from `rng`.
+pub fn stress_friction(seed: u64, fs: f64, rng: &mut ChaCha8Rng) -> Friction {
+    if seed % 2 == 0 {
+        Friction::SmoothCreep
+    } else {
+        Friction::Stribeck {
+            fs_static_nm: fs * rng.random_range(1.2..1.8),
+            stribeck_rad_s: rng.random_range(0.01..0.05),
+        }
+    }
 }
 
 /// One run: `speed_rad_s` (sign = direction) held for `steady_s` after 50 ms at rest and a
