@@ -6,6 +6,8 @@
 #ifndef STEPDAMP_MOTOR_H
 #define STEPDAMP_MOTOR_H
 
+#include <stddef.h>
+
 #include "stepdamp.h"
 
 /* Detent torque on the rotor: -A sin(k·Nr·θ + φ), N·m. */

@@ -60,7 +60,7 @@ pub fn header(p: &Profile, name: &str, origin: &str, ident: &str) -> Result<Stri
          * Profile \"{}\" from {}. SI units: N·m/A, Ω, H, N·m, V, Hz, A, rad.\n \
          * Open loop with the patent's compensation; servo gains from a {} Hz position loop\n \
          * on J = {} kg·m² (velocity filter {} Hz).\n \
-         * Holding current {}. */\n#ifndef {guard}\n#define {guard}\n\n#include \"stepdamp.h\"\n\n",
+         * Holding current {}. */\n#ifndef {guard}\n#define {guard}\n\n#include <stddef.h>\n\n#include \"stepdamp.h\"\n\n",
         c_comment(name),
         c_comment(origin),
         p.servo.bandwidth_hz,

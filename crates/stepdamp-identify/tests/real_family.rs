@@ -21,6 +21,8 @@
 //! CI runs [`CI_MOTORS`] motors; all 50: `cargo test --release -p stepdamp-identify --test
 //! real_family -- --ignored --nocapture`.
 
+#![cfg(feature = "simulate")]
+
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;

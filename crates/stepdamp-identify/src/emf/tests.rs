@@ -1,5 +1,5 @@
 use super::*;
-use crate::log::RunLog;
+#[cfg(feature = "simulate")]
 use crate::plan::{PlannedRun, RunDrive};
 use stepdamp_profile::Profile;
 
