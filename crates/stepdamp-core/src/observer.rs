@@ -156,11 +156,11 @@ pub struct ObserverState {
     pub km_hat: f32,
     /// Periods since the current command last changed (saturating).
     pub command_steady_periods: u16,
-    /// How far a real motor's back-EMF leads its rotor's q axis at the rotor angle of the
-    /// last period, electrical rad: `atan2(τ_d, τ_q) ≈ −cd/(1 − cq)` from the ripple per
-    /// ampere ([`crate::ripple`]; the back-EMF per rad/s is the torque per ampere), set by
-    /// the estimated law and taken off the fast estimate; 0 for a pure-sine motor
-    /// (docs/design.md#real-motors-flux-harmonics).
+    /// The angle of a real motor's back-EMF from its rotor's q axis (towards +d) at the rotor
+    /// angle of the last period, electrical rad: `atan2(τ_d, τ_q) ≈ −cd/(1 − cq)` from the
+    /// ripple per ampere ([`crate::ripple`]; the back-EMF per rad/s is the torque per
+    /// ampere), set by the estimated law; the back-EMF is turned back by it before both
+    /// filters. 0 for a pure-sine motor (docs/design.md#real-motors-flux-harmonics).
     pub emf_angle_error_rad: f32,
 }
 
@@ -310,11 +310,11 @@ impl LoadAngleObserver {
         let wl = dtheta_e / self.period_s * self.l_h;
         let ed = vd - st.r_hat_ohm * id - self.l_over_ts * di.d + wl * iq;
         let eq = vq - st.r_hat_ohm * iq - self.l_over_ts * di.q - wl * id;
-        // A real motor's back-EMF leads the rotor's q axis by `ε` (small): turned back by it
-        // before both filters, so that they see the rotor's angle (0 for a pure sine: the
-        // same bits).
+        // A real motor's back-EMF is `ε` (small) off the rotor's q axis: turned back by it
+        // before both filters, so that they see the rotor's angle (skipped for a pure sine:
+        // the same bits).
         let eps = st.emf_angle_error_rad;
-        let (ed, eq) = (ed - eps * eq, eq + eps * ed);
+        let (ed, eq) = if eps != 0.0 { (ed - eps * eq, eq + eps * ed) } else { (ed, eq) };
         self.filter.update(&mut st.e_dq.d, ed);
         self.filter.update(&mut st.e_dq.q, eq);
         self.slow.update(&mut st.e_dq_slow.d, ed);

@@ -2,7 +2,8 @@
 //! (`stepdamp-ffi`, `include/stepdamp.h`: field names as in that header), open loop with
 //! the patent's compensation; a firmware changes `.mode`/`.compensation` as it needs.
 //!
-//! Names: the identifiers `<ident>_DETENT`, `<ident>_PARAMS` and the include guard
+//! Names: the identifiers `<ident>_DETENT`, `<ident>_RIPPLE_PER_AMP_D`, `<ident>_RIPPLE_PER_AMP_Q`
+//! (the last two for a profile with `[motor.flux]`), `<ident>_PARAMS` and the include guard
 //! `STEPDAMP_<IDENT>_H` come from [`ident_for`] (the output file's stem or a given name),
 //! so the headers of two axes can be included in one translation unit.
 

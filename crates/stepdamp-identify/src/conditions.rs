@@ -238,7 +238,7 @@ pub enum Decision {
         /// Why.
         reason: String,
     },
-    /// Back-EMF runs ([`crate::emf::is_emf_run`]) left out of the torque fit: their
+    /// Back-EMF runs (with phase signals and [`crate::emf::is_emf_run`]) left out of the torque fit: their
     /// harmonics are far beyond the servo, their torque all `J·dω/dt`; they are for the
     /// flux linkage ([`crate::emf`]).
     BackEmfRunsLeftOut {

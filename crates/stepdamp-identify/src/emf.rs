@@ -80,6 +80,10 @@ pub fn is_emf_run(log: &RunLog, pole_pairs: u16) -> bool {
     d > 0.0 && log.electrical_periods(pole_pairs) / d >= EMF_MIN_ELECTRICAL_HZ
 }
 
+/// Samples per period of the highest fitted harmonic a back-EMF run must have: fewer alias
+/// it ([`fit_flux`] refuses such a run, naming its rate).
+pub const MIN_SAMPLES_PER_HARMONIC: f64 = 4.0;
+
 /// What the back-EMF fit needs from the base profile.
 #[derive(Clone, Debug, PartialEq)]
 pub struct EmfOptions {
@@ -91,8 +95,6 @@ pub struct EmfOptions {
     pub inductance_h: f64,
     /// The base's `Km`, N·m/A (compared with the back-EMF's).
     pub km_nm_per_a: f64,
-    /// Encoder counts per revolution (the smoothing corner of the angle, [`kinematics::corner_hz`]).
-    pub counts_per_rev: u32,
     /// Odd flux harmonic orders to fit (3..=[`stepdamp_profile::flux::MAX_FLUX_ORDER`]).
     pub orders: Vec<u16>,
 }
@@ -105,10 +107,19 @@ impl EmfOptions {
             resistance_ohm: base.motor.resistance_ohm,
             inductance_h: base.motor.inductance_h,
             km_nm_per_a: base.motor.km_nm_per_a,
-            counts_per_rev: base.encoder.counts_per_rev,
             orders: DEFAULT_FLUX_ORDERS.to_vec(),
         }
     }
+}
+
+/// An amplitude (the magnitude of two noisy components) stands out of the noise at 95 % when
+/// it exceeds `√χ²₂(0.95) = 2.448` standard deviations, i.e. 1.249 × the 95 % half-width of
+/// [`polar_with_ci`] (1.96 σ); 1.96 σ alone would pass 15 % of pure noise.
+const AMPLITUDE_TEST: f64 = 2.448 / 1.96;
+
+/// Whether `e` stands out of the noise: `|value| > factor × ci95` (a NaN does not).
+fn stands_out(e: &Estimate, factor: f64) -> bool {
+    e.value.abs() > factor * e.ci95
 }
 
 /// One identified flux harmonic: `h_n·cos(n·θe + a_n)` in phase a's flux per unit of the
@@ -148,30 +159,33 @@ pub struct FluxFit {
 }
 
 impl FluxFit {
-    /// The `[motor.flux]` section: `g` and the harmonics that stand out of the noise, i.e.
-    /// whose 95 % interval excludes 0; the others are left out (0). Writing a harmonic that is
+    /// The `[motor.flux]` section: `g` and the harmonics that stand out of the noise at 95 %
+    /// (`g` outside its interval; an amplitude above [`AMPLITUDE_TEST`] × its half-width); the
+    /// others are left out (0). Writing a harmonic that is
     /// noise makes the controller feed forward that noise's ripple at the holding current:
     /// measured on `patent-motor` (a pure sine), 91.5× against 84.6× at the 4th-order
     /// resonance with the identified profile (docs/identification.md#the-flux-linkage-from-the-back-emf).
     pub fn section(&self) -> FluxSection {
-        let significant = |e: &Estimate| e.value.abs() > e.ci95;
         FluxSection {
-            phase_b_gain: if significant(&self.phase_b_gain) { self.phase_b_gain.value } else { 0.0 },
+            phase_b_gain: if stands_out(&self.phase_b_gain, 1.0) { self.phase_b_gain.value } else { 0.0 },
             harmonics: self
                 .harmonics
                 .iter()
-                .filter(|h| significant(&h.ratio))
+                .filter(|h| stands_out(&h.ratio, AMPLITUDE_TEST))
                 .map(|h| FluxHarmonic { order: h.order, ratio: h.ratio.value, phase_rad: h.phase_rad.value })
                 .collect(),
         }
     }
 
-    /// The fitted terms [`FluxFit::section`] leaves out (within their intervals of 0), by name.
+    /// The fitted terms [`FluxFit::section`] leaves out (within the noise), by name.
     pub fn left_out(&self) -> Vec<String> {
-        let g = self.phase_b_gain;
-        let mut out: Vec<String> = (g.value.abs() <= g.ci95).then(|| "phase_b_gain".to_string()).into_iter().collect();
+        let g = (!stands_out(&self.phase_b_gain, 1.0)).then(|| "phase_b_gain".to_string());
+        let mut out: Vec<String> = g.into_iter().collect();
         out.extend(
-            self.harmonics.iter().filter(|h| h.ratio.value <= h.ratio.ci95).map(|h| format!("harmonic {}", h.order)),
+            self.harmonics
+                .iter()
+                .filter(|h| !stands_out(&h.ratio, AMPLITUDE_TEST))
+                .map(|h| format!("harmonic {}", h.order)),
         );
         out
     }
@@ -227,7 +241,7 @@ impl fmt::Display for FluxFit {
         }
         let left_out = self.left_out();
         if !left_out.is_empty() {
-            writeln!(f, "  not written to the profile (within their 95 % intervals of 0): {}", left_out.join(", "))?;
+            writeln!(f, "  not written to the profile (within the noise at 95 %): {}", left_out.join(", "))?;
         }
         for w in self.warnings() {
             writeln!(f, "  warning: {w}")?;
@@ -252,6 +266,18 @@ pub enum EmfError {
         /// Why.
         source: lsq::LsqError,
     },
+    /// A back-EMF run sampled too slowly for its highest fitted harmonic.
+    #[error(
+        "{run}: sampled at {rate_hz:.0} Hz, a back-EMF run needs at least {need_hz:.0} Hz ({MIN_SAMPLES_PER_HARMONIC} samples per period of its highest fitted flux harmonic); log every control period"
+    )]
+    SampleRate {
+        /// The run.
+        run: String,
+        /// Its sample rate, Hz.
+        rate_hz: f64,
+        /// The rate it needs, Hz.
+        need_hz: f64,
+    },
     /// The fundamental came out too small to normalise by.
     #[error("the back-EMF fit over {0}: no back-EMF fundamental (is the motor turning, are the voltages logged?)")]
     NoFundamental(String),
@@ -270,6 +296,15 @@ pub fn fit_flux(logs: &[RunLog], o: &EmfOptions) -> Result<Option<FluxFit>, EmfE
     let names = runs.iter().map(|l| l.source.as_str()).collect::<Vec<_>>().join(", ");
     let mut orders = vec![1u16];
     orders.extend(&o.orders);
+    let nmax = f64::from(*orders.iter().max().unwrap_or(&1));
+    for log in &runs {
+        let (rate, f_e) =
+            (1.0 / crate::kinematics::median_step(&log.t_s), log.electrical_periods(o.pole_pairs) / log.duration_s());
+        let need = MIN_SAMPLES_PER_HARMONIC * nmax * f_e;
+        if rate.partial_cmp(&need) == Some(std::cmp::Ordering::Less) || rate.is_nan() || need.is_nan() {
+            return Err(EmfError::SampleRate { run: log.source.clone(), rate_hz: rate, need_hz: need });
+        }
+    }
     let p = 2 * orders.len() + 1;
     let (mut da, mut db) = (Design::new(p), Design::new(p));
     let mut block_base = 0u32;
@@ -288,6 +323,11 @@ pub fn fit_flux(logs: &[RunLog], o: &EmfOptions) -> Result<Option<FluxFit>, EmfE
 fn push_run(log: &RunLog, o: &EmfOptions, orders: &[u16], da: &mut Design, db: &mut Design, block0: u32) -> u32 {
     let Some(ph) = &log.phases else { return block0 };
     let n = log.len();
+    // Columns of another length (a log built by hand) are no run to fit.
+    let lens = [log.theta_fb_rad.len(), ph.i_a_a.len(), ph.i_b_a.len(), ph.v_a_v.len(), ph.v_b_v.len()];
+    if lens.iter().any(|&len| len != n) {
+        return block0;
+    }
     let nr = f64::from(o.pole_pairs);
     let (t, th) = (&log.t_s, &log.theta_fb_rad);
     // The speed and the angle come from the quantised encoder angle. Its staircase, sampled
@@ -297,8 +337,8 @@ fn push_run(log: &RunLog, o: &EmfOptions, orders: &[u16], da: &mut Design, db: &
     // angle is what biases the back-EMF's fit (measured: Km 1–2 % off with the corner at
     // 4 kHz on a 4000-count encoder, 0.01 % with 2^20 counts).
     let (_, _, w_line) = kinematics::line_fit(t, th);
-    let corner = (CORNER_PER_ELECTRICAL_HZ * f64::from(o.pole_pairs) * w_line.abs() / TAU)
-        .clamp(1.0, 0.2 / kinematics::median_step(t));
+    let fs = 1.0 / kinematics::median_step(t);
+    let corner = (CORNER_PER_ELECTRICAL_HZ * f64::from(o.pole_pairs) * w_line.abs() / TAU).min(0.2 * fs).max(1.0);
     let kin = kinematics::estimate(t, th, corner);
     let smooth_theta = smoothed_angle(t, th, &kin);
     let wbar = kin.mean_speed_rad_s;
@@ -320,14 +360,14 @@ fn push_run(log: &RunLog, o: &EmfOptions, orders: &[u16], da: &mut Design, db: &
             row[2 * j + 1] = w * c;
         }
         row[da.p - 1] = 1.0;
-        let block = block0 + (theta_e - nr * smooth_theta[lo]).abs().div_euclid(TAU) as u32;
+        let block = block0.saturating_add((theta_e - nr * smooth_theta[lo]).abs().div_euclid(TAU) as u32);
         max_block = max_block.max(block);
         let drop = |i: &[f64], v: &[f64]| v[k] - r * 0.5 * (i[k] + i[k + 1]) - l * (i[k + 1] - i[k]) / dt;
         let PhaseSignals { i_a_a, i_b_a, v_a_v, v_b_v } = ph;
         da.push(&row, drop(i_a_a, v_a_v), block);
         db.push(&row, drop(i_b_a, v_b_v), block);
     }
-    max_block + 1
+    max_block.saturating_add(1)
 }
 
 /// The encoder angle with its quantisation smoothed away: the least-squares line plus the

@@ -94,7 +94,8 @@ pub struct RunLog {
     pub ignored_columns: Vec<String>,
     /// The phase currents and applied voltages, kept for a run fast enough for the back-EMF
     /// fit of the flux linkage ([`crate::emf::is_emf_run`]) when the log has all four
-    /// columns; `None` otherwise (a slow run's are dropped once read, so they cost no memory).
+    /// columns; `None` otherwise (a slow run's are read, checked like every column, and
+    /// dropped: they cost memory only while the log is read).
     pub phases: Option<PhaseSignals>,
 }
 

@@ -299,7 +299,21 @@ pub fn plan(base: &Profile, o: &PlanOptions) -> Result<Plan, PlanError> {
         ));
     }
     let mut runs = planned_runs(&speeds, fb, o);
-    runs.push(back_emf_run(base, fb, runs.len() + 1));
+    let emf = back_emf_run(base, fb, runs.len() + 1);
+    // The run must be recognised as one by its mean electrical frequency over the whole log.
+    let moving_s = emf.duration_s - emf.dwell_s - 0.5 * emf.ramp_s;
+    let f_mean = nr * emf.speed_rad_s.abs() * moving_s / (TAU * emf.duration_s);
+    if f_mean >= crate::emf::EMF_MIN_ELECTRICAL_HZ {
+        runs.push(emf);
+    } else {
+        notes.push(format!(
+            "no back-EMF run: the fastest this drive allows (PWM {:.0} Hz, bus {:.0} V) is {:.0} Hz electrical, under the {} Hz the back-EMF fit needs; the flux section (the ripple that grows with the current) must come from elsewhere",
+            base.drive.pwm_hz,
+            base.drive.bus_voltage_v,
+            f_mean,
+            crate::emf::EMF_MIN_ELECTRICAL_HZ
+        ));
+    }
     let profile = base
         .edited(&base.name, |p| {
             p.servo.bandwidth_hz = fb;
@@ -488,6 +502,7 @@ pub fn back_emf_run(base: &Profile, fb: f64, index: usize) -> PlannedRun {
         speed_rad_s: w,
         dwell_s: dwell,
         ramp_s: ramp,
+        // 0.05 s beyond the steady part, as the other runs have.
         duration_s: dwell + ramp + 0.05 + EMF_STEADY_S,
         reason: format!(
             "back-EMF: log the phase currents and the applied voltages (i_a_a, i_b_a, v_a_v, v_b_v); their back-EMF gives the flux linkage's 3rd and 5th harmonics and the phases' imbalance, the ripple that grows with the current, which the slow runs at i_d = 0 cannot see; {f_e:.0} Hz electrical, harmonic {nmax} at {:.0} Hz = PWM/{:.0}, back-EMF {:.1} V = {:.0} % of the bus ({:.0} electrical periods in {EMF_STEADY_S} s steady)",
@@ -513,8 +528,8 @@ mod tests {
         let plan = plan(&p, &PlanOptions::default()).unwrap();
         assert_eq!(plan.runs.len(), 5);
         let speeds: Vec<f64> = plan.runs.iter().map(|r| r.speed_rad_s).collect();
-        // The back-EMF run last: 7th flux harmonic at PWM/16 = 1250 Hz, 25 rad/s electrical
-        // 178.5 Hz → 22.439 rad/s mechanical (Nr 50); back-EMF 6.7 V, under 30 % of 48 V.
+        // The back-EMF run last: 7th flux harmonic at PWM/16 = 1250 Hz, so 178.5 Hz
+        // electrical → 22.439 rad/s mechanical (Nr 50); back-EMF 6.7 V, under 30 % of 48 V.
         let emf = &plan.runs[4];
         assert!((emf.speed_rad_s - 22.439).abs() < 1e-9 && emf.name == "run-5-emf-22.439rad_s", "{emf:?}");
         assert!(emf.reason.contains("back-EMF") && emf.reason.contains("v_a_v"), "{}", emf.reason);

@@ -135,7 +135,15 @@ fn compensation(truth: &Profile, id: &Profile) -> (f64, f64, f64, String) {
         est = est.min(x_est);
         // Met when ≥ 10× (the bound) or, where the law falls short of that with the
         // true profile too, ≥ 80 % of the true profile's dB.
-        let met = if x_est >= 10.0 { f64::INFINITY } else { x_est.log10() / x_est_true.log10() };
+        let met = if x_est >= 10.0 {
+            f64::INFINITY
+        } else if x_est_true >= 10.0 || x_est_true <= 1.0 {
+            // Short of 10x where the true profile reaches it (or does nothing): not met,
+            // unless it does at least as well.
+            if x_est >= x_est_true { f64::INFINITY } else { 0.0 }
+        } else {
+            x_est.log10() / x_est_true.log10()
+        };
         ratio = ratio.min(met);
         line += &format!(" k{k}: estimated {x_est:.1}x (true profile {x_est_true:.1}x)");
         if k != 2 {

@@ -82,3 +82,27 @@ fn even_or_out_of_range_orders_are_refused() {
     let e = fit_flux(&[], &o).unwrap_err();
     assert_eq!(e.to_string(), "flux harmonic order 4: must be odd, 3 to 15");
 }
+
+#[test]
+fn a_back_emf_run_sampled_too_slowly_is_refused_naming_its_rate_not_a_panic() {
+    // 4 Hz samples of a rotor at 10 rad/s (about 80 Hz electrical): the 7th harmonic needs
+    // 4 samples per period, about 2230 Hz.
+    let n = 40;
+    let t: Vec<f64> = (0..n).map(|k| 0.25 * k as f64).collect();
+    let log = RunLog {
+        source: "slow.csv".into(),
+        theta_fb_rad: t.iter().map(|t| 10.0 * t).collect(),
+        i_q_a: vec![0.0; n],
+        iq_cmd_a: None,
+        iq_source: crate::log::IqSource::Column,
+        ignored_columns: Vec::new(),
+        phases: Some(PhaseSignals { i_a_a: vec![0.0; n], i_b_a: vec![0.0; n], v_a_v: vec![0.0; n], v_b_v: vec![0.0; n] }),
+        t_s: t,
+    };
+    assert!(is_emf_run(&log, 50));
+    let e = fit_flux(&[log], &EmfOptions::for_profile(&Profile::preset("patent-motor").unwrap())).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "slow.csv: sampled at 4 Hz, a back-EMF run needs at least 2228 Hz (4 samples per period of its highest fitted flux harmonic); log every control period"
+    );
+}

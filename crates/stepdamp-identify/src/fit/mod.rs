@@ -175,8 +175,9 @@ pub fn fit(logs: &[RunLog], o: &FitOptions) -> Result<Fit, FitError> {
         return Err(FitError::NoLogs);
     }
     let kmax = *o.orders.iter().max().expect("checked non-empty");
-    // Back-EMF runs are for the flux linkage (crate::emf), unless there is nothing else.
-    let emf = |l: &&RunLog| crate::emf::is_emf_run(l, o.pole_pairs);
+    // Back-EMF runs (fast, with the phase signals) are for the flux linkage (crate::emf),
+    // unless there is nothing else.
+    let emf = |l: &&RunLog| l.phases.is_some() && crate::emf::is_emf_run(l, o.pole_pairs);
     let back_emf: Vec<String> = logs.iter().filter(emf).map(|l| l.source.clone()).collect();
     let left_out_emf = back_emf.len() < logs.len() && !back_emf.is_empty();
     let mut prepared = logs
