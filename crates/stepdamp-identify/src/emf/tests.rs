@@ -96,7 +96,12 @@ fn a_back_emf_run_sampled_too_slowly_is_refused_naming_its_rate_not_a_panic() {
         iq_cmd_a: None,
         iq_source: crate::log::IqSource::Column,
         ignored_columns: Vec::new(),
-        phases: Some(PhaseSignals { i_a_a: vec![0.0; n], i_b_a: vec![0.0; n], v_a_v: vec![0.0; n], v_b_v: vec![0.0; n] }),
+        phases: Some(PhaseSignals {
+            i_a_a: vec![0.0; n],
+            i_b_a: vec![0.0; n],
+            v_a_v: vec![0.0; n],
+            v_b_v: vec![0.0; n],
+        }),
         t_s: t,
     };
     assert!(is_emf_run(&log, 50));
