@@ -115,10 +115,10 @@ impl EmfOptions {
 /// An amplitude (the magnitude of two noisy components) stands out of the noise at 95 % when
 /// it exceeds `√χ²₂(0.95) = 2.448` standard deviations, i.e. 1.249 × the 95 % half-width of
 /// [`polar_with_ci`] (1.96 σ); 1.96 σ alone would pass 15 % of pure noise.
-const AMPLITUDE_TEST: f64 = 2.448 / 1.96;
+pub(crate) const AMPLITUDE_TEST: f64 = 2.448 / 1.96;
 
 /// Whether `e` stands out of the noise: `|value| > factor × ci95` (a NaN does not).
-fn stands_out(e: &Estimate, factor: f64) -> bool {
+pub(crate) fn stands_out(e: &Estimate, factor: f64) -> bool {
     e.value.abs() > factor * e.ci95
 }
 

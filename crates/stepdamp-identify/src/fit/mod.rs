@@ -144,7 +144,7 @@ mod report;
 mod result;
 mod sanity;
 mod solve;
-mod thresholds;
+pub(crate) mod thresholds;
 mod warnings;
 
 pub use options::{Effort, FitOptions};

@@ -283,8 +283,19 @@ pub fn identify(
             o.check_sensorless()?;
             let fo = FitOptions { inertia: o.inertia, ..sensorless_fit_options(base, &o.orders) };
             let sf = identify_sensorless(l, base, &fo, &FluxOptions::default())?;
-            let report = SensorlessReport::new(&base.name, base.motor.resistance_ohm, base.motor.km_nm_per_a, &sf);
-            (RouteReport::Sensorless(report), sf.model(), None, Some(sf.estimated.current_offset_a))
+            let report = SensorlessReport::new(
+                &base.name,
+                base.motor.resistance_ohm,
+                base.motor.km_nm_per_a,
+                &base.motor.flux,
+                &sf,
+            );
+            let with_flux = if sf.flux == base.motor.flux {
+                None
+            } else {
+                Some(base.edited(&base.name, |d| d.motor.flux = sf.flux.clone())?)
+            };
+            (RouteReport::Sensorless(report), sf.model(), with_flux, Some(sf.estimated.current_offset_a))
         }
     };
     let fit_s = t0.elapsed().as_secs_f64() - read_s;

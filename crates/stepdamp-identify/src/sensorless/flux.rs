@@ -117,6 +117,10 @@ pub struct RotorAngle {
     /// Standard deviation of the radius about its mean over the moving part, as a fraction
     /// of the mean: what the noise and errors in `R` and `L` leave (0 for exact data).
     pub radius_ripple: f64,
+    /// The radius per unit of the shape's own at the estimated angle (1 for the circle),
+    /// Wb, at each sample after the standstill (`theta_e_rad[standstill_samples..]`): its
+    /// harmonics in `θe` measure the shape's error ([`super::shape`]).
+    pub radius_wb: Vec<f64>,
     /// Centre windows fitted.
     pub windows: usize,
 }
@@ -400,6 +404,7 @@ pub fn rotor_angle(
         standstill_samples: still,
         flux_wb,
         radius_ripple: var.sqrt() / flux_wb,
+        radius_wb: radius,
         windows: centres.len(),
     })
 }

@@ -23,6 +23,7 @@ pub mod flux;
 pub mod log;
 pub mod plan;
 pub mod report;
+pub mod shape;
 
 use crate::fit::FitOptions;
 use crate::log::{IqSource, RunLog};
@@ -33,7 +34,11 @@ use stepdamp_profile::Profile;
 /// The winding constants of a base profile, with its flux shape when it has a
 /// `[motor.flux]` section.
 pub fn winding(base: &Profile) -> Winding {
-    let flux = &base.motor.flux;
+    winding_with(base, &base.motor.flux)
+}
+
+/// The winding constants of a base profile with the flux section `flux` instead of its own.
+pub fn winding_with(base: &Profile, flux: &stepdamp_profile::flux::FluxSection) -> Winding {
     Winding {
         pole_pairs: base.motor.pole_pairs,
         resistance_ohm: base.motor.resistance_ohm,
@@ -87,6 +92,9 @@ pub struct Estimated {
     /// The offset of the sampled phase currents `(ε_a, ε_b)` found from the running mean
     /// voltages ([`flux::running_mean_voltage`]) and taken off every sample, A.
     pub current_offset_a: (f64, f64),
+    /// Per log whose radius determines them, the flux radius's harmonics
+    /// ([`shape::RadiusHarmonics`]).
+    pub radius: Vec<shape::RadiusHarmonics>,
 }
 
 impl Estimated {
@@ -115,12 +123,14 @@ pub fn estimate(logs: &[SensorlessLog], w: &Winding, o: &FluxOptions) -> Result<
     let nr = f64::from(w.pole_pairs);
     let mut out = Vec::with_capacity(logs.len());
     let mut angles = Vec::with_capacity(logs.len());
+    let mut radius = Vec::with_capacity(logs.len());
     for (log, st) in logs.iter().zip(&corrected) {
         let mut log = log.clone();
         log.i_a_a.iter_mut().for_each(|i| *i -= current_offset_a.0);
         log.i_b_a.iter_mut().for_each(|i| *i -= current_offset_a.1);
         let log = &log;
         let a = rotor_angle(log, w, resistance_ohm, o)?;
+        radius.extend(shape::RadiusHarmonics::of(&a.theta_e_rad[a.standstill_samples..], &a.radius_wb));
         // The torque per Km: the Park transform's i_q for the circle; with a flux shape the
         // model's own torque, so the current-proportional ripple is not fitted as detent.
         let i_q_a = a
@@ -153,7 +163,7 @@ pub fn estimate(logs: &[SensorlessLog], w: &Winding, o: &FluxOptions) -> Result<
             phases: None,
         });
     }
-    Ok(Estimated { logs: out, angles, resistance_ohm, resistance_source, current_offset_a })
+    Ok(Estimated { logs: out, angles, resistance_ohm, resistance_source, current_offset_a, radius })
 }
 
 /// Why the sensorless route failed.
@@ -177,6 +187,12 @@ pub struct SensorlessFit {
     pub estimated: Estimated,
     /// The torque-balance fit of those logs.
     pub fit: crate::fit::Fit,
+    /// The flux shape's error the radius showed against the base's shape, over all passes
+    /// ([`shape::ShapeFit::total_since`]; `None`: fewer than two logs determine it).
+    pub shape: Option<shape::ShapeFit>,
+    /// The flux section the angles and torques were computed with: the base's, corrected by
+    /// [`shape::ShapeFit::corrected`] when something stood out.
+    pub flux: stepdamp_profile::flux::FluxSection,
 }
 
 impl SensorlessFit {
@@ -189,8 +205,15 @@ impl SensorlessFit {
     }
 }
 
+/// Passes of the shape correction: the first measures the shape's error against the base's,
+/// the next ones what is left with the corrected shape (its second-order terms); each pass
+/// estimates every angle again.
+pub const SHAPE_PASSES: usize = 3;
+
 /// The whole route: [`balance::check`] the phase currents, [`estimate`] the angles with the
-/// base's winding, then [`crate::fit::fit`] with `fit` (normally [`fit_options`]).
+/// base's winding, correct its flux shape from the radius ([`shape`]) and estimate again
+/// (at most [`SHAPE_PASSES`] times, until nothing stands out), then [`crate::fit::fit`] with
+/// `fit` (normally [`fit_options`]).
 pub fn identify(
     logs: &[SensorlessLog],
     base: &Profile,
@@ -198,9 +221,18 @@ pub fn identify(
     o: &FluxOptions,
 ) -> Result<SensorlessFit, SensorlessError> {
     balance::check(logs, base.motor.pole_pairs)?;
-    let estimated = estimate(logs, &winding(base), o)?;
+    let mut flux = base.motor.flux.clone();
+    let mut estimated = estimate(logs, &winding_with(base, &flux), o)?;
+    let mut pass = shape::ShapeFit::of(&estimated.radius);
+    for _ in 0..SHAPE_PASSES {
+        let Some(next) = pass.as_ref().map(|p| p.corrected(&flux)).filter(|n| *n != flux) else { break };
+        flux = next;
+        estimated = estimate(logs, &winding_with(base, &flux), o)?;
+        pass = shape::ShapeFit::of(&estimated.radius);
+    }
+    let shape = pass.map(|last| last.total_since(&base.motor.flux, &flux));
     let fit = crate::fit::fit(&estimated.logs, fit)?;
-    Ok(SensorlessFit { estimated, fit })
+    Ok(SensorlessFit { estimated, fit, shape, flux })
 }
 
 #[cfg(all(test, feature = "simulate"))]

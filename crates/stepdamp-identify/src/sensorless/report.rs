@@ -4,6 +4,7 @@ use super::flux::ResistanceSource;
 use super::{AngleReport, SensorlessFit};
 use crate::fit::FitReport;
 use serde::Serialize;
+use stepdamp_profile::flux::FluxSection;
 
 /// Warn when the flux circle's `Km` differs from the base profile's by more than this
 /// fraction (a wrong `Km` scales every identified torque; a wrong `L` shows here too).
@@ -31,6 +32,11 @@ pub struct SensorlessReport {
     pub angles: Vec<AngleReport>,
     /// Cautions about the estimate.
     pub notes: Vec<String>,
+    /// The flux shape's error the radius showed against the base's shape (`None`: fewer than
+    /// two logs).
+    pub flux_shape: Option<super::shape::ShapeFit>,
+    /// The `[motor.flux]` section written, when it differs from the base's.
+    pub flux_written: Option<stepdamp_profile::flux::FluxSection>,
     /// The fit's report, as on the servo route.
     pub fit: FitReport,
 }
@@ -38,7 +44,7 @@ pub struct SensorlessReport {
 impl SensorlessReport {
     /// The report of `f`, identified from a base profile with `R = base_resistance_ohm` and
     /// `Km = base_km`.
-    pub fn new(base: &str, base_resistance_ohm: f64, base_km: f64, f: &SensorlessFit) -> Self {
+    pub fn new(base: &str, base_resistance_ohm: f64, base_km: f64, base_flux: &FluxSection, f: &SensorlessFit) -> Self {
         let e = &f.estimated;
         let mut notes = Vec::new();
         for a in &e.angles {
@@ -66,6 +72,13 @@ impl SensorlessReport {
                 super::flux::FluxOptions::default().min_standstill_s
             ));
         }
+        let flux_written = (f.flux != *base_flux).then(|| f.flux.clone());
+        if flux_written.as_ref().is_some_and(|w| w.harmonics != base_flux.harmonics) {
+            notes.push(format!(
+                "the flux radius gives the third and fifth harmonics' sum only: {:.0} % of it is written to the third, as on measured motors (docs/sensorless.md#the-flux-shape-without-a-sensor); the open-loop ripple follows, the servo-mode (i_q) ripple is uncertain by the split",
+                100.0 * super::shape::THIRD_SHARE
+            ));
+        }
         SensorlessReport {
             route: "sensorless",
             resistance_ohm: e.resistance_ohm,
@@ -74,6 +87,8 @@ impl SensorlessReport {
             base_km_nm_per_a: base_km,
             angles: e.angles.clone(),
             notes,
+            flux_shape: f.shape.clone(),
+            flux_written,
             fit: FitReport::new(base, f.fit.clone()),
         }
     }
@@ -107,6 +122,23 @@ impl std::fmt::Display for SensorlessReport {
                 self.base_km_nm_per_a,
                 100.0 * a.radius_ripple
             )?;
+        }
+        if let Some(s) = &self.flux_shape {
+            write!(
+                f,
+                "flux shape from the radius over {} logs (against the base's): g {:+.4} ± {:.4}, third + fifth {:.4} ± {:.4} at {:+.3} rad",
+                s.logs,
+                s.phase_b_gain.value,
+                s.phase_b_gain.ci95,
+                s.sum_ratio.value,
+                s.sum_ratio.ci95,
+                s.sum_phase_rad.value
+            )?;
+            let out = s.left_out();
+            if !out.is_empty() {
+                write!(f, "; within the noise, left out: {}", out.join(", "))?;
+            }
+            writeln!(f)?;
         }
         for n in &self.notes {
             writeln!(f, "note: {n}")?;
