@@ -11,7 +11,7 @@
 //!
 //! so the radius's 2nd harmonic gives `g` and its 4th the sum `X₃ + X₅`. The split of that
 //! sum between the third and the fifth is not observable below resonance: the estimated angle
-//! is the linkage's direction, which the harmonics turn by `Im[X₅·e^{j4θe} − X₃*·e^{−j4θe}]`,
+//! is the linkage's direction, which the harmonics turn by `Im[(X₅ − X₃)·e^{j4θe}]`,
 //! and in open loop the rotor's load angle and that turn add up to `4·(X₃ + X₅)` — the same
 //! sum. [`THIRD_SHARE`] splits it by what measured motors show.
 //!
