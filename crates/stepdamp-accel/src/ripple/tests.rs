@@ -116,9 +116,13 @@ fn captures_at_one_speed_are_refused_as_ill_determined() {
 
 #[test]
 fn bad_options_and_a_swept_trial_are_one_line_errors() {
-    let e = identify_ripple(&[], &R, &RippleOptions { orders: vec![17], ..options() }).unwrap_err().to_string();
+    let e = identify_ripple::<AccelCapture>(&[], &R, &RippleOptions { orders: vec![17], ..options() })
+        .unwrap_err()
+        .to_string();
     assert_eq!(e, "orders = 17: must be each in 1..=16");
-    let e = identify_ripple(&[], &R, &RippleOptions { km_nm_per_a: f64::NAN, ..options() }).unwrap_err().to_string();
+    let e = identify_ripple::<AccelCapture>(&[], &R, &RippleOptions { km_nm_per_a: f64::NAN, ..options() })
+        .unwrap_err()
+        .to_string();
     assert_eq!(e, "km_nm_per_a = NaN: must be positive");
     let mut g = m973(6.0, 0.01);
     if let Gcode::ParamSweep { trial, .. } = &mut g {
