@@ -83,6 +83,23 @@ pub struct KlipperOptions {
     pub axis: Axis,
     /// The accelerometer's name (`adxl345` for `[adxl345]`); `None` takes the only one.
     pub accelerometer: Option<String>,
+    /// The trial the driver's table carried during the whole log, if any (Klipper has no
+    /// `M973`: a trial is a table of its own, e.g. a TMC wave table written for it).
+    pub trial: Option<TrialShift>,
+}
+
+/// A known shift of the commanded current vector's angle, `U·sin(k·θe + φ)` (rad, `θe` the
+/// log's electrical angle): the trial that fixes the scale of the head's response
+/// (`docs/accelerometer.md#identifying-the-ripple-from-captures`). A Prusa `M973` trial
+/// `H<k> C<mag> A<φ>` is `U = 4·mag` in firmware ≥ 6.3.1.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrialShift {
+    /// The order `k`, 1..=16.
+    pub harmonic: u32,
+    /// `U` (rad).
+    pub amplitude_rad: f64,
+    /// `φ` (rad).
+    pub phase_rad: f64,
 }
 
 /// A log as read.
@@ -94,6 +111,8 @@ pub struct Log {
     pub stepper: String,
     /// The accelerometer's subscription (`accelerometer:adxl345`).
     pub accelerometer: String,
+    /// The trial during the log ([`KlipperOptions::trial`]).
+    pub trial: Option<TrialShift>,
     /// The kinematics.
     pub kinematics: Kinematics,
     /// Microsteps per full step (`microsteps`).

@@ -45,6 +45,17 @@ struct Reader<'a> {
 /// [`super::MAX_STEPS`] steps, and at most [`super::MAX_DECOMPRESSED_BYTES`] are read.
 pub fn read_log<R: Read>(input: R, file: &str, o: &KlipperOptions) -> Result<Log, KlipperError> {
     let file = &stepdamp_out::input::printable(file.as_bytes(), crate::prusa::MAX_NAME_CHARS);
+    if let Some(t) = o.trial {
+        let ok = (1..=crate::capture::MAX_HARMONIC).contains(&t.harmonic)
+            && (0.0..=1.0).contains(&t.amplitude_rad)
+            && t.phase_rad.is_finite();
+        if !ok {
+            return Err(KlipperError::Missing {
+                file: file.clone(),
+                what: format!("trial {t:?}: harmonic 1..=16, amplitude 0..=1 rad, a finite phase"),
+            });
+        }
+    }
     let stepper = if o.axis == Axis::X { "stepper_x" } else { "stepper_y" };
     let mut r = Reader {
         file,
@@ -295,6 +306,7 @@ impl Reader<'_> {
             source: self.file.into(),
             stepper: self.stepper.into(),
             accelerometer,
+            trial: self.o.trial,
             kinematics: c.kinematics,
             microsteps: c.microsteps,
             full_steps_per_rotation: c.full_steps,

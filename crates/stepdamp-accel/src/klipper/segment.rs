@@ -81,9 +81,11 @@ impl RippleCapture for Segment<'_> {
         (self.range.len() - 1) as f64 / (t1 - t0)
     }
 
-    /// No trial: Klipper has no `M973`.
+    /// The log's trial ([`super::KlipperOptions::trial`]), already in rad: `trial_scale`
+    /// (Prusa's table units) does not apply.
     fn direction_and_trial(&self, _: f64) -> Result<(Direction, Option<(u32, Complex)>), RippleError> {
-        Ok((self.direction, None))
+        let trial = self.log.trial.filter(|t| t.amplitude_rad != 0.0);
+        Ok((self.direction, trial.map(|t| (t.harmonic, Complex::from_polar(t.amplitude_rad, t.phase_rad)))))
     }
 
     /// The blocks over the whole stretch; the reconstruction is not used (the log dates and

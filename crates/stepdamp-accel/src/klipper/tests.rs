@@ -38,7 +38,7 @@ fn accel(n: usize) -> String {
 }
 
 fn opts() -> KlipperOptions {
-    KlipperOptions { axis: Axis::X, accelerometer: None }
+    KlipperOptions { axis: Axis::X, accelerometer: None, trial: None }
 }
 
 fn read(messages: &[String]) -> Result<Log, KlipperError> {
