@@ -23,7 +23,7 @@
 mod frame;
 pub mod motion;
 mod read;
-mod segment;
+pub mod segment;
 
 use crate::capture::{Axis, Commanded};
 pub use read::{read_file, read_log};
