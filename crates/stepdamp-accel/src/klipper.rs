@@ -33,9 +33,10 @@ use serde_json::Value;
 /// The most bytes decompressed from one log (1 GiB): an ADXL345 at 3200 Hz with a stepper
 /// queue logs about 0.3 MB/s, so an hour fits; a zip bomb stops here.
 pub const MAX_DECOMPRESSED_BYTES: u64 = 1 << 30;
-/// The most bytes of one message (16 MiB): a batch is tens of kB (0.1 s of samples,
-/// adxl345.py:199; 0.5 s of steps, bulk_sensor.py:20).
-pub const MAX_RECORD_BYTES: usize = 1 << 24;
+/// The most bytes of one message (4 MiB): a batch is tens of kB (0.1 s of samples,
+/// adxl345.py:199; 0.5 s of steps, bulk_sensor.py:20), and a message is parsed whole (a few
+/// tens of bytes of memory per number).
+pub const MAX_RECORD_BYTES: usize = 1 << 22;
 /// The most accelerometer samples kept (2²¹, 11 minutes at 3200 Hz; 16 bytes each, and
 /// 40 more for the commanded motion).
 pub const MAX_SAMPLES: usize = 1 << 21;

@@ -123,7 +123,7 @@ fn huge_declared_counts_and_messages_stop_at_the_bounds() {
     let e = read(&[config("cartesian"), steps().replace("[100,1000,0]", "[100,70000,0]")]).unwrap_err().to_string();
     assert!(e.contains("data[0] = [100,70000,0]: expected [interval, count, add]"), "{e}");
     let e = read(&[" ".repeat(MAX_RECORD_BYTES + 1)]).unwrap_err().to_string();
-    assert!(e.contains("record 1: more than 16777216 bytes in one message"), "{e}");
+    assert!(e.contains("record 1: more than 4194304 bytes in one message"), "{e}");
 }
 
 #[test]
