@@ -33,7 +33,8 @@ pub struct Segment<'a> {
 impl Log {
     /// The stretches where the commanded speed keeps one sign and at least
     /// [`MIN_SPEED_REV_S`], and the commanded acceleration stays within
-    /// [`MAX_ACCEL_REV_S2`], less [`SETTLE_S`] at each end, at least [`MIN_SEGMENT_S`] long.
+    /// [`MAX_ACCEL_REV_S2`], less [`SETTLE_S`] at each end, at least [`MIN_SEGMENT_S`] long
+    /// and with two samples or more.
     pub fn segments(&self) -> Vec<Segment<'_>> {
         let c = &self.commanded;
         let ok = |i: usize| c[i].speed_rev_s.abs() >= MIN_SPEED_REV_S && c[i].accel_rev_s2.abs() <= MAX_ACCEL_REV_S2;
@@ -55,6 +56,9 @@ impl Log {
             }
             let a = start + self.times_s[start..i].partition_point(|&t| t < t0);
             let b = start + self.times_s[start..i].partition_point(|&t| t <= t1);
+            if b < a + 2 {
+                continue; // the accelerometer left a gap: no rate, no blocks
+            }
             let direction = if sign > 0.0 { Direction::Forward } else { Direction::Backward };
             out.push(Segment { log: self, range: a..b, direction });
         }
