@@ -4,6 +4,9 @@
 //! search, read what the firmware's calibration G-codes print and identify the response of
 //! each harmonic of the motor's electrical angle, model-based. This crate is its first layer:
 //!
+//! - [`klipper`]: a bounded, streaming reader of Klipper's motion-analysis logs
+//!   (`data_logger.py`): samples dated, projected on the motor's belt and angled from the
+//!   stepper's queue, cut into the stretches the ripple fit takes.
 //! - [`prusa`]: a bounded, streaming reader of `M973`/`M974` output as a host logged it
 //!   (OctoPrint, Pronterface, plain serial), every capture of a session in order.
 //! - [`capture`]: one capture ([`AccelCapture`]) and the commanded motor angle, electrical
@@ -28,6 +31,7 @@ pub mod capture;
 mod complex;
 pub mod head;
 pub mod influence;
+pub mod klipper;
 pub mod lockin;
 pub mod plan;
 pub mod prusa;

@@ -49,8 +49,22 @@ pub fn block_responses(
             "the samples do not cover the analysed window {t0:.3}…{t1:.3} s: a cut capture or a wrong first_sample_s"
         )));
     }
-    let inside = || states.iter().zip(&c.samples).filter(|(s, _)| s.t_s >= t0 && s.t_s <= t1);
-    let Some((first, _)) = inside().next() else { return Ok(Vec::new()) };
+    Ok(window_blocks(&states, &c.samples, (t0, t1), harmonic, periods_per_block))
+}
+
+/// The blocks of [`block_responses`] from the commanded motion and the sample at each of a
+/// recording's samples (`states[i]` is sample `samples[i]`'s), inside the window
+/// `[t0, t1]` (s): the part shared by Prusa's captures and Klipper's logs
+/// ([`crate::klipper`]), which date and angle their samples themselves.
+pub(crate) fn window_blocks(
+    states: &[crate::capture::Commanded],
+    samples: &[f64],
+    (t0, t1): (f64, f64),
+    harmonic: u32,
+    periods_per_block: u32,
+) -> Vec<BlockResponse> {
+    let inside = || states.iter().zip(samples).filter(|(s, _)| s.t_s >= t0 && s.t_s <= t1);
+    let Some((first, _)) = inside().next() else { return Vec::new() };
     let theta0 = first.electrical_rad;
     let n = f64::from(harmonic);
     let span = TAU * f64::from(periods_per_block);
@@ -68,14 +82,14 @@ pub fn block_responses(
         e.3 += 1;
     }
     blocks.pop(); // the last block is incomplete (or ends exactly at the window's end)
-    Ok(blocks
+    blocks
         .iter()
         .filter_map(|(sums, v, t, count)| {
             let value = solve_block(sums)?;
             let k = *count as f64;
             Some(BlockResponse { harmonic, value, speed_rev_s: v / k, samples: *count, t_s: t / k })
         })
-        .collect())
+        .collect()
 }
 
 #[cfg(test)]

@@ -263,34 +263,72 @@ fn check(o: &RippleOptions) -> Result<(), RippleError> {
     Ok(())
 }
 
-/// The capture's direction and its trial `(H, U)` (`U` the shift phasor, rad), or why it
-/// cannot be used: an `M973` whose trial sweeps.
-fn direction(c: &AccelCapture, scale: f64) -> Result<(Direction, Option<(u32, Complex)>), RippleError> {
-    let g = c.require_gcode()?;
-    let trial = match g {
-        Gcode::ParamSweep { .. } => {
-            let (h, _, _, mag, pha) = c.constant_trial("identifying the ripple")?;
-            (mag != 0.0).then(|| (h, Complex::from_polar(scale * mag, pha)))
-        }
-        Gcode::SpeedSweep { .. } => None,
-    };
-    Ok((if g.phase_direction() > 0.0 { Direction::Forward } else { Direction::Backward }, trial))
+/// What the fit needs of one recording: a Prusa capture ([`AccelCapture`], its motion
+/// rebuilt from its G-code) or a stretch of a Klipper log ([`crate::klipper::Segment`], its
+/// motion read from the stepper's queue).
+pub trait RippleCapture {
+    /// Where it comes from, for messages (`file:line`).
+    fn origin(&self) -> String;
+    /// Its sampling rate (Hz): the band limit's reference.
+    fn sampling_freq_hz(&self) -> f64;
+    /// Its direction and its trial `(H, U)` (`U` the shift phasor, rad, at `trial_scale` rad
+    /// per table unit; `None` without a trial), or why it cannot be used.
+    fn direction_and_trial(&self, trial_scale: f64) -> Result<(Direction, Option<(u32, Complex)>), RippleError>;
+    /// The lock-in blocks of `harmonic` ([`crate::lockin::block_responses`]).
+    fn blocks(
+        &self,
+        r: &Reconstruction,
+        harmonic: u32,
+        periods_per_block: u32,
+    ) -> Result<Vec<crate::lockin::BlockResponse>, CaptureError>;
+}
+
+impl RippleCapture for AccelCapture {
+    fn origin(&self) -> String {
+        format!("{}:{}", self.source, self.line)
+    }
+
+    fn sampling_freq_hz(&self) -> f64 {
+        self.annotations.sampling_freq_hz
+    }
+
+    /// An `M973` whose trial sweeps cannot be used.
+    fn direction_and_trial(&self, scale: f64) -> Result<(Direction, Option<(u32, Complex)>), RippleError> {
+        let g = self.require_gcode()?;
+        let trial = match g {
+            Gcode::ParamSweep { .. } => {
+                let (h, _, _, mag, pha) = self.constant_trial("identifying the ripple")?;
+                (mag != 0.0).then(|| (h, Complex::from_polar(scale * mag, pha)))
+            }
+            Gcode::SpeedSweep { .. } => None,
+        };
+        Ok((if g.phase_direction() > 0.0 { Direction::Forward } else { Direction::Backward }, trial))
+    }
+
+    fn blocks(
+        &self,
+        r: &Reconstruction,
+        harmonic: u32,
+        periods_per_block: u32,
+    ) -> Result<Vec<crate::lockin::BlockResponse>, CaptureError> {
+        block_responses(self, r, harmonic, periods_per_block)
+    }
 }
 
 /// The blocks to fit, their (order, direction) groups, and what is left out.
 type Collected = (Vec<Point>, Vec<(u32, Direction)>, Vec<NotIdentified>);
 
 /// The blocks of every capture in band, grouped by (order, direction), and what is left out.
-fn collect(captures: &[AccelCapture], r: &Reconstruction, o: &RippleOptions) -> Result<Collected, RippleError> {
+fn collect<C: RippleCapture>(captures: &[C], r: &Reconstruction, o: &RippleOptions) -> Result<Collected, RippleError> {
     let holding = o.km_nm_per_a * o.current_peak_a;
     let k_mag = holding * f64::from(o.periods_per_rev);
     let mut by_group: Vec<((u32, Direction), Vec<Point>)> = Vec::new();
     let mut fastest = [0.0_f64; 2];
     for c in captures {
-        let (dir, trial) = direction(c, o.trial_scale)?;
-        let fs = c.annotations.sampling_freq_hz;
+        let (dir, trial) = c.direction_and_trial(o.trial_scale)?;
+        let fs = c.sampling_freq_hz();
         for &k in &o.orders {
-            for b in block_responses(c, r, k, o.periods_per_block)? {
+            for b in c.blocks(r, k, o.periods_per_block)? {
                 fastest[dir as usize] = fastest[dir as usize].max(b.speed_rev_s.abs());
                 let w = f64::from(k) * f64::from(o.periods_per_rev) * TAU * b.speed_rev_s;
                 if w.abs() / TAU >= o.band_fraction * fs || b.speed_rev_s == 0.0 {
@@ -299,8 +337,9 @@ fn collect(captures: &[AccelCapture], r: &Reconstruction, o: &RippleOptions) -> 
                 let Some(lag) = load_angle_rad(b.speed_rev_s, o.coulomb_friction_nm, o.viscous_nm_s_per_rad, holding)
                 else {
                     return Err(RippleError::IllDetermined(format!(
-                        "{}:{}: at {:.2} rev/s the base profile's friction exceeds Km·I: a wrong profile or current",
-                        c.source, c.line, b.speed_rev_s
+                        "{}: at {:.2} rev/s the base profile's friction exceeds Km·I: a wrong profile or current",
+                        c.origin(),
+                        b.speed_rev_s
                     )));
                 };
                 let point = Point {
@@ -332,7 +371,7 @@ fn collect(captures: &[AccelCapture], r: &Reconstruction, o: &RippleOptions) -> 
             if n >= MIN_BLOCKS {
                 continue;
             }
-            let limit = o.band_fraction * captures.first().map_or(0.0, |c| c.annotations.sampling_freq_hz)
+            let limit = o.band_fraction * captures.first().map_or(0.0, |c| c.sampling_freq_hz())
                 / (f64::from(k) * f64::from(o.periods_per_rev));
             let band_limit_rev_s = (fastest[dir as usize] > 0.0).then_some(limit);
             let reason = match band_limit_rev_s {
@@ -353,13 +392,16 @@ fn collect(captures: &[AccelCapture], r: &Reconstruction, o: &RippleOptions) -> 
     Ok((points, groups, missing))
 }
 
-/// Identifies the head and the ripple from `captures` (each with its G-code, recorded with
-/// the correction off; module doc). Refuses with [`RippleError::IllDetermined`] when no order
+/// Identifies the head and the ripple from `captures` (Prusa captures with their G-code, or
+/// the segments of a Klipper log, [`crate::klipper::Log::segments`]; recorded with the
+/// correction off; module doc). Without any trial (a Klipper log, or Prusa sweeps alone) the
+/// shift delay has nothing to be fitted from: it is reported as 0 with an infinite interval,
+/// and the scale of the response comes from the sweeps alone. Refuses with [`RippleError::IllDetermined`] when no order
 /// has blocks in band, when the normal equations are singular, when `J_t` or `ω_b` is known
 /// to worse than ±[`MAX_RELATIVE_HALF_WIDTH`], when `J_t` comes out below the rotor's own, or
 /// when the model explains less than [`RippleOptions::min_explained`] of the response.
-pub fn identify_ripple(
-    captures: &[AccelCapture],
+pub fn identify_ripple<C: RippleCapture>(
+    captures: &[C],
     r: &Reconstruction,
     o: &RippleOptions,
 ) -> Result<RippleFit, RippleError> {
@@ -445,9 +487,11 @@ fn head_of(sol: &fit::Solution, o: &RippleOptions) -> Result<IdentifiedHead, Rip
         belt_damping_ratio: z,
         belt_stiffness_n_per_m: m.value * wb.value * wb.value,
         rotor_damping_nm_s_per_rad: c,
-        shift_delay_s: {
+        shift_delay_s: if sol.delay_fitted {
             let (v, s) = (sol.x[4] * fit::DELAY_UNIT_S, sol.covariance[4][4].max(0.0).sqrt() * fit::DELAY_UNIT_S);
             Interval95 { value: v, low: v - Z95 * s, high: v + Z95 * s }
+        } else {
+            Interval95 { value: 0.0, low: f64::NEG_INFINITY, high: f64::INFINITY }
         },
     })
 }

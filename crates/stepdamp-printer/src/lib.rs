@@ -11,6 +11,8 @@
 //! - [`printer`]: the axis ([`SimulatedPrinter`]): the motor simulator in open loop
 //!   replaying the Prusa table, the move as the firmware plans it, the accelerometer
 //!   ([`AccelModel`]) and the printed capture.
+//! - [`motan`]: the same axis as a Klipper printer, its moves recorded as Klipper's
+//!   motion-analysis logger writes them ([`SimulatedPrinter::motan_log`]).
 //! - [`score`]: an absolute vibration score of a capture ([`VibrationScore`]).
 //! - [`family`]: a seeded family of random printers ([`family_printer`]): real motors,
 //!   heads, run currents.
@@ -20,11 +22,13 @@
 pub mod family;
 mod format;
 pub mod head;
+pub mod motan;
 pub mod printer;
 pub mod score;
 
 pub use family::family_printer;
 pub use head::{HeadError, HeadModel};
+pub use motan::{KlipperSetup, MotanLog};
 pub use printer::{AccelModel, PrinterError, SimulatedPrinter, Trace};
 pub use score::VibrationScore;
 

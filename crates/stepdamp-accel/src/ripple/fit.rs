@@ -48,6 +48,9 @@ pub(super) struct Solution {
     /// `Σ w·|y − ŷ|²` and `Σ w·|y|²`, per group and in all.
     pub residual: Vec<f64>,
     pub total: Vec<f64>,
+    /// Whether any block has a known torque (a trial): without one the delay `τ` is not
+    /// fitted (held at 0, its variance meaningless).
+    pub delay_fitted: bool,
 }
 
 /// The head's response per torque against the commanded angle:
@@ -161,8 +164,15 @@ fn normal(jac: &[Vec<f64>], r: &[f64]) -> (Vec<Vec<f64>>, Vec<f64>) {
             }
         }
     }
+    // Without a known torque (no trial) the delay's column is zero: it stays at its start, 0.
+    if n > DELAY && a[DELAY][DELAY] == 0.0 {
+        a[DELAY][DELAY] = 1.0;
+    }
     (a, g)
 }
+
+/// The index of the delay unknown `τ` in `x`.
+const DELAY: usize = 4;
 
 /// The inverse of a symmetric positive definite `a` by Gauss–Jordan with partial pivoting;
 /// `None` if it is singular to working precision.
@@ -242,5 +252,6 @@ pub(super) fn solve(f: &Fixed, pts: &[Point], groups: usize, j_range: (f64, f64)
         residual[p.group] += r[2 * i] * r[2 * i] + r[2 * i + 1] * r[2 * i + 1];
         total[p.group] += p.weight * p.y.norm_sqr();
     }
-    Some(Solution { x, covariance, residual, total })
+    let delay_fitted = pts.iter().any(|p| p.known != Complex::default());
+    Some(Solution { x, covariance, residual, total, delay_fitted })
 }

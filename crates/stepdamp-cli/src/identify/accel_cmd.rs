@@ -6,11 +6,17 @@
 use super::args::check_output_dir;
 use super::fit_cmd::FitArgs;
 use crate::common::{load_motor, write_atomic};
-use anyhow::{Result, bail};
+use anyhow::{Result, anyhow, bail};
 use serde::Serialize;
 use std::f64::consts::TAU;
-use stepdamp_accel::Reconstruction;
+use std::io::Read;
+use std::path::PathBuf;
+use stepdamp_accel::capture::SETTLE_S;
+use stepdamp_accel::klipper::segment::MIN_SEGMENT_S;
+use stepdamp_accel::klipper::{KlipperOptions, Log, TrialShift};
 use stepdamp_accel::ripple::{Interval95, RippleFit, RippleOptions, identify_ripple};
+use stepdamp_accel::{Axis, Reconstruction};
+use stepdamp_export::escape;
 use stepdamp_export::prusa::Firmware;
 
 /// The belt travel per revolution the pulley radius follows from (mm): `--mm-per-rev`'s range,
@@ -36,7 +42,6 @@ pub(super) fn run_accel_cmd(a: &FitArgs) -> Result<()> {
     }
     let base = load_motor(motor)?;
     check_output_dir(out)?;
-    let captures = crate::accel::read_captures(&a.accel, axis)?;
     let m = &base.motor;
     let o = RippleOptions {
         rotor_inertia_kg_m2: m.inertia_kg_m2,
@@ -53,8 +58,32 @@ pub(super) fn run_accel_cmd(a: &FitArgs) -> Result<()> {
         first_sample_s: 0.0,
         mm_per_rev: a.mm_per_rev,
     };
-    let fit = identify_ripple(&captures, &r, &o)?;
-    outln!("{} captures of axis {letter} on {} at {run}; belt {} mm/rev", captures.len(), base.name, a.mm_per_rev);
+    let fit = if klipper_logs(&a.accel)? {
+        let logs = read_klipper_logs(a, axis, o.periods_per_rev)?;
+        let segments: Vec<_> = logs.iter().flat_map(Log::segments).collect();
+        if segments.is_empty() {
+            bail!(
+                "no stretch of steady motion in the Klipper logs (at least {MIN_SEGMENT_S} s between ramps, the first and last {SETTLE_S} s cut): move at constant speed or sweep slowly (docs/accelerometer.md#klippers-motion-analysis-logs)"
+            );
+        }
+        let fit = identify_ripple(&segments, &r, &o)?;
+        let n = logs.len();
+        outln!(
+            "{} stretches of {n} Klipper logs of axis {letter} on {} at {run}; belt {} mm/rev",
+            segments.len(),
+            base.name,
+            a.mm_per_rev
+        );
+        fit
+    } else {
+        if !a.klipper_trial.is_empty() {
+            bail!("--klipper-trial goes with Klipper logs (LOG.json.gz); Prusa captures carry their trial in M973");
+        }
+        let captures = crate::accel::read_captures(&a.accel, axis)?;
+        let fit = identify_ripple(&captures, &r, &o)?;
+        outln!("{} captures of axis {letter} on {} at {run}; belt {} mm/rev", captures.len(), base.name, a.mm_per_rev);
+        fit
+    };
     outln!("{fit}");
     let file = IdentifiedFile::new(&fit, &base.name, letter, run.peak_a());
     let text = format!(
@@ -65,6 +94,60 @@ pub(super) fn run_accel_cmd(a: &FitArgs) -> Result<()> {
     write_atomic(out, text.as_bytes())?;
     outln!("wrote {}", out.display());
     Ok(())
+}
+
+/// Whether the inputs are Klipper motion-analysis logs (a gzip header, `1f 8b`) rather than
+/// Prusa captures (text); refuses a mix. A file that cannot be opened counts as a capture,
+/// whose reader names it.
+fn klipper_logs(paths: &[PathBuf]) -> Result<bool> {
+    let gzip = |p: &PathBuf| {
+        let mut magic = [0u8; 2];
+        std::fs::File::open(p).and_then(|mut f| f.read_exact(&mut magic)).is_ok() && magic == [0x1f, 0x8b]
+    };
+    let kinds: Vec<bool> = paths.iter().map(gzip).collect();
+    if kinds.iter().any(|&k| k) && !kinds.iter().all(|&k| k) {
+        bail!("--accel: Klipper logs (gzip) and Prusa captures (text) mixed: give one kind");
+    }
+    Ok(kinds.first().copied().unwrap_or(false))
+}
+
+/// Every `--accel` Klipper log with its `--klipper-trial`, checked against the profile's
+/// electrical periods per revolution.
+fn read_klipper_logs(a: &FitArgs, axis: Axis, periods_per_rev: u32) -> Result<Vec<Log>> {
+    let mut trials: Vec<(PathBuf, TrialShift)> = Vec::new();
+    for t in &a.klipper_trial {
+        let form = || format!("--klipper-trial {}: expected LOG=H,U,PHI (H 1..=16, U and PHI in rad)", escape::line(t));
+        let (log, v) = t.rsplit_once('=').ok_or_else(|| anyhow!(form()))?;
+        let f: Vec<&str> = v.split(',').map(str::trim).collect();
+        let [h, u, phi] = f[..] else { bail!(form()) };
+        let (Ok(harmonic), Ok(amplitude_rad), Ok(phase_rad)) = (h.parse(), u.parse(), phi.parse()) else {
+            bail!(form())
+        };
+        let log = PathBuf::from(log);
+        if !a.accel.contains(&log) {
+            bail!(
+                "--klipper-trial {}: {} is not one of the --accel logs",
+                escape::line(t),
+                escape::line(&log.display().to_string())
+            );
+        }
+        trials.push((log, TrialShift { harmonic, amplitude_rad, phase_rad }));
+    }
+    let mut logs = Vec::new();
+    for path in &a.accel {
+        let trial = trials.iter().find(|(p, _)| p == path).map(|x| x.1);
+        let log = stepdamp_accel::klipper::read_file(path, &KlipperOptions { axis, accelerometer: None, trial })?;
+        if log.periods_per_rev() != periods_per_rev {
+            bail!(
+                "{}: full_steps_per_rotation {} is {} electrical periods per revolution, the profile's pole pairs {periods_per_rev}: a wrong --motor or --axis",
+                log.source,
+                log.full_steps_per_rotation,
+                log.periods_per_rev()
+            );
+        }
+        logs.push(log);
+    }
+    Ok(logs)
 }
 
 /// The file `identify --accel` writes (docs/files.md#identified-ripple-toml).
@@ -238,6 +321,46 @@ mod tests {
         }
         assert!(v["explained_share"].as_float().unwrap() > 0.9);
         assert!(v["not_identified"].as_array().unwrap().iter().any(|r| r["order"].as_integer() == Some(16)));
+    }
+
+    #[test]
+    fn identify_accel_reads_klipper_logs_and_their_trial() {
+        use stepdamp_printer::KlipperSetup;
+        let dir = tempfile::tempdir().unwrap();
+        let p = SimulatedPrinter::new(stepdamp_sim::Profile::from_file(std::path::Path::new(MOTOR)).unwrap(), 0.9);
+        let at_2 = |revs: f64, mag: f64| {
+            let trial = TrialSweep { harmonic: 4, pha_start: 0.0, pha_end: 0.0, mag_start: mag, mag_end: mag };
+            Gcode::ParamSweep { axis: Axis::X, speed: 2.0, revs, trial }
+        };
+        let sweep = |revs| Gcode::SpeedSweep { axis: Axis::X, start_speed: 2.0, end_speed: 4.0, revs };
+        // The table carries 0.12·sin(4·θe) (Prusa's H4 C0.03) in the second log only.
+        let logs = [
+            ("plain.json.gz", vec![sweep(8.0), sweep(-8.0), at_2(6.0, 0.0), at_2(-6.0, 0.0)], 1),
+            ("trial.json.gz", vec![at_2(6.0, 0.03), at_2(-6.0, 0.03)], 2),
+        ];
+        let mut paths = Vec::new();
+        for (name, moves, seed) in logs {
+            let log = SimulatedPrinter { seed, ..p.clone() }.motan_log(&moves, &KlipperSetup::default()).unwrap();
+            let path = dir.path().join(name);
+            std::fs::write(&path, log.json_gz).unwrap();
+            paths.push(path.to_str().unwrap().to_string());
+        }
+        let out = dir.path().join("ripple.toml");
+        let trial = format!("{}=4,0.12,0", paths[1]);
+        let a = ["--accel", &paths[0], &paths[1], "--klipper-trial", &trial, "--motor", MOTOR, "--axis", "X"];
+        run(args(&[&a[..], &["--current", "0.9", "--out", out.to_str().unwrap()]].concat()), &Q).unwrap();
+        let v: toml::Table = toml::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+        let rows = v["ripple"].as_array().unwrap();
+        for dir in ["forward", "backward"] {
+            let row = rows.iter().find(|r| r["direction"].as_str() == Some(dir) && r["order"].as_integer() == Some(4));
+            let a = row.unwrap()["amplitude_nm"].as_float().unwrap();
+            // motor ripple --motor patent-motor-real --id 0.9 --iq 0: order 4 is 32.9 mN·m.
+            assert!((a / 0.0329 - 1.0).abs() < 0.1, "{dir}: {a}");
+        }
+        assert_eq!(v["captures"].as_integer(), Some(6), "one stretch per move");
+        let mixed = ["--accel", &paths[0], "x.log", "--motor", MOTOR, "--axis", "X", "--current", "0.9", "--out"];
+        let e = run(args(&[&mixed[..], &[out.to_str().unwrap()]].concat()), &Q).unwrap_err().to_string();
+        assert!(e.contains("Klipper logs (gzip) and Prusa captures (text) mixed") && !e.contains('\n'), "{e}");
     }
 
     #[test]

@@ -67,11 +67,17 @@ pub(super) struct FitArgs {
     pub(super) sensorless: bool,
     /// Instead of run logs: Prusa accelerometer captures (session logs with the echoed
     /// M973/M974 commands, recorded with the correction off): an M974 sweep and an M973 pair
-    /// per direction (`identify plan --accel`). Identifies the head and the ripple, orders
+    /// per direction (`identify plan --accel`); or Klipper motion-analysis logs
+    /// (data_logger.py's LOG.json.gz, told apart by their gzip header). Identifies the head and the ripple, orders
     /// 1-16 where the sampling rate allows, per direction at the run current, and writes the
     /// TOML of docs/files.md#identified-ripple-toml (docs/accelerometer.md#identifying-the-ripple-from-captures).
     #[arg(long, num_args = 1.., value_name = "CAPTURE")]
     pub(super) accel: Vec<PathBuf>,
+    /// With --accel and Klipper motion-analysis logs (LOG.json.gz): the trial the driver's
+    /// table carried during LOG, its current-vector angle shift U·sin(H·θe + PHI), U and
+    /// PHI in rad (docs/accelerometer.md#klippers-motion-analysis-logs). Repeat per log.
+    #[arg(long, value_name = "LOG=H,U,PHI")]
+    pub(super) klipper_trial: Vec<String>,
     /// With --accel: the motor the captures moved, X or Y (on CoreXY the A or B motor).
     #[arg(long, value_name = "X|Y")]
     pub(super) axis: Option<String>,
