@@ -441,6 +441,20 @@ mod tests {
     /// Steady state in the command frame: constant i_dq, rotor `delta` behind at speed `w`;
     /// the voltages the winding equations require.
     fn run(obs: &LoadAngleObserver, st: &mut ObserverState, w: f32, delta: f32, r_true: f32, n: usize) {
+        run_with_emf_lead(obs, st, w, delta, 0.0, r_true, n);
+    }
+
+    /// As [`run`], with a back-EMF `lead` rad off the rotor's q axis towards +d (a real
+    /// motor's: docs/design.md#real-motors-flux-harmonics).
+    fn run_with_emf_lead(
+        obs: &LoadAngleObserver,
+        st: &mut ObserverState,
+        w: f32,
+        delta: f32,
+        lead: f32,
+        r_true: f32,
+        n: usize,
+    ) {
         let i = Dq { d: 1.9, q: 0.0 };
         let we = 50.0 * w;
         let dth = we * TS;
@@ -448,7 +462,7 @@ mod tests {
         for _ in 0..n {
             obs.update(st, &input(rot(th, i), th, dth, w));
             // Voltage for the coming period, in the frame at its middle.
-            let e = Dq { d: KM * w * libm::sinf(delta), q: KM * w * libm::cosf(delta) };
+            let e = Dq { d: KM * w * libm::sinf(delta + lead), q: KM * w * libm::cosf(delta + lead) };
             let v = Dq { d: r_true * i.d + e.d - we * L * i.q, q: r_true * i.q + e.q + we * L * i.d };
             obs.record(st, rot(th + 0.5 * dth, v), i);
             th = (th + dth) % TAU;
@@ -463,6 +477,22 @@ mod tests {
             run(&obs, &mut st, w, delta, R, 20_000);
             assert!((st.delta_rad - delta).abs() < 0.01, "w {w}: {} vs {delta}", st.delta_rad);
         }
+    }
+
+    /// A back-EMF that leads the rotor's q axis by `ε` reads as a load angle `δ + ε`; with
+    /// `emf_angle_error_rad = ε` the observer turns it back and reads `δ` (the sign the
+    /// estimated law sets, docs/design.md#real-motors-flux-harmonics).
+    #[test]
+    fn a_back_emf_lead_is_turned_back_by_the_emf_angle_error() {
+        let (w, delta, lead) = (10.0, 0.2, 0.08);
+        let obs = observer(R, KM);
+        let mut plain = ObserverState::default();
+        run_with_emf_lead(&obs, &mut plain, w, delta, lead, R, 20_000);
+        assert!((plain.delta_rad - (delta + lead)).abs() < 0.01, "uncorrected {}", plain.delta_rad);
+        let mut turned = ObserverState { emf_angle_error_rad: lead, ..ObserverState::default() };
+        run_with_emf_lead(&obs, &mut turned, w, delta, lead, R, 20_000);
+        assert_eq!(turned.emf_angle_error_rad, lead, "the observer keeps the law's value");
+        assert!((turned.delta_rad - delta).abs() < 0.01, "corrected {}", turned.delta_rad);
     }
 
     #[test]
