@@ -261,8 +261,8 @@ fn ten_seconds_of_20_khz_logs_parse_and_identify_quickly() {
     assert!(f.samples_used > rows * 9 / 10);
     let rows = rows + logs[4].len();
     eprintln!("{rows} rows ({:.1} s at 20 kHz): read {read:.3} s, read + identify {total:.3} s", rows as f64 / 20e3);
-    // The time is reported (`.ci/run` runs this in a release build and prints it), not
-    // judged: a shared machine is slower, and debug builds of csv are slow.
+    // The time is printed, not judged: a shared machine is slower, and debug builds of csv
+    // are slow (`.ci/run` reports the release CLI's time on the default plan's logs).
 }
 
 /// A synthetic log of the model itself (no servo): θ = ω t quantised to 4000 counts, i_q
