@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # Fuzzes the profile parser, the run-log reader, the static-table reader, the Prusa
 # read-back reader, the correction-table reader (`sweep --table`), the study spec and the
-# accelerometer capture reader (M973/M974 output) with libFuzzer.
+# accelerometer capture reader (M973/M974 output) and Klipper's motion-analysis log reader with
+# libFuzzer.
 #
-#   bash fuzz/run.sh [SECONDS_PER_TARGET] [TARGET…]      (default: 20 s each, all seven)
+#   bash fuzz/run.sh [SECONDS_PER_TARGET] [TARGET…]      (default: 20 s each, all eight)
 #
 # Starts from the minimised seeds in fuzz/corpus/TARGET (kept in git) plus what earlier runs
 # found in fuzz/corpus-run/TARGET (not kept). Prints each target's executions; a crash stops
@@ -13,7 +14,7 @@ cd "$(dirname "$0")"
 secs=${1:-20}
 shift || true
 targets=("$@")
-[[ ${#targets[@]} -gt 0 ]] || targets=(profile log static_table prusa_readback correction_table study_spec accel_capture)
+[[ ${#targets[@]} -gt 0 ]] || targets=(profile log static_table prusa_readback correction_table study_spec accel_capture klipper_log)
 # cargo fuzz passes unstable (-Z) rustc flags; stable rustc accepts them with this.
 export RUSTC_BOOTSTRAP=1
 # No sanitizer: the code is safe Rust (unsafe_code is forbidden), so ASan would only slow
@@ -26,6 +27,7 @@ for t in "${targets[@]}"; do
     [[ $t == profile || $t == study_spec ]] && dict=dict/profile.dict
     [[ $t == prusa_readback || $t == correction_table ]] && dict=dict/prusa.dict
     [[ $t == accel_capture ]] && dict=dict/accel.dict
+    [[ $t == klipper_log ]] && dict=dict/klipper.dict
     mkdir -p "corpus-run/$t"
     log=$(mktemp)
     if ! cargo fuzz run "${flags[@]}" "$t" "corpus-run/$t" "corpus/$t" -- \
