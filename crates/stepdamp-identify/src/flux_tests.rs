@@ -45,6 +45,10 @@ fn loaded_runs(motor: &Profile) -> Vec<[Vec<f64>; 3]> {
 }
 
 fn identify_from(runs: &[[Vec<f64>; 3]], base: &Profile) -> Result<Profile, String> {
+    report_from(runs, base).map(|r| r.profile)
+}
+
+fn report_from(runs: &[[Vec<f64>; 3]], base: &Profile) -> Result<crate::from_logs::IdentifyReport, String> {
     let sources: Vec<LogSource<'_>> = runs
         .iter()
         .enumerate()
@@ -60,7 +64,30 @@ fn identify_from(runs: &[[Vec<f64>; 3]], base: &Profile) -> Result<Profile, Stri
             name: format!("loaded-{i}"),
         })
         .collect();
-    identify(&sources, base, &IdentifyOptions::new(&[1, 2, 4])).map(|r| r.profile).map_err(|e| e.to_string())
+    identify(&sources, base, &IdentifyOptions::new(&[1, 2, 4])).map_err(|e| e.to_string())
+}
+
+/// Servo logs without a back-EMF run: the report says the flux shape was not measured, and
+/// what that means: the growing ripple known at the logs' current only (a sine base), or
+/// the base's section used as given.
+#[test]
+fn without_a_back_emf_run_the_report_says_the_flux_shape_was_not_measured() {
+    let truth = real_motor();
+    let runs = loaded_runs(&truth);
+    let with_shape = truth.edited("base", |p| p.motor.detent.clear()).unwrap();
+    let note = |base: &Profile| report_from(&runs, base).unwrap().fit_report().flux_note.clone().unwrap_or_default();
+    let given = note(&with_shape);
+    assert!(given.contains("used as given, not measured"), "{given}");
+    let sine = with_shape.edited("sine", |p| p.motor.flux = Default::default()).unwrap();
+    match report_from(&runs, &sine) {
+        Ok(r) => {
+            let n = r.fit_report().flux_note.clone().unwrap_or_default();
+            assert!(n.contains("known there only") && n.contains("back-EMF run"), "{n}");
+            assert!(r.to_string().contains("note: no back-EMF run"), "the text report prints it");
+        }
+        // These logs may be refused without the shape (the test above): nothing to note then.
+        Err(e) => eprintln!("without the shape: {e}"),
+    }
 }
 
 /// Under a 0.15 N·m load the servo's `i_q` is about 0.5 A, and the flux harmonics' ripple

@@ -23,6 +23,10 @@ pub struct FitReport {
     /// were any: the detent above was fitted with it.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub flux: Option<crate::emf::FluxFit>,
+    /// Why the flux shape was not measured, when the logs have no back-EMF run: what the
+    /// fit then knows about the ripple that grows with the current.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub flux_note: Option<String>,
 }
 
 /// What logs recorded with a detent feed-forward running tell (`identify --ff-on`, the
@@ -68,12 +72,18 @@ impl FitReport {
     /// The report of `fit`, validated up to [`default_max_order`].
     pub fn new(base: &str, fit: Fit) -> Self {
         let validation = validate(&fit, default_max_order(&fit));
-        FitReport { base: base.to_string(), fit, validation, feed_forward: None, flux: None }
+        FitReport { base: base.to_string(), fit, validation, feed_forward: None, flux: None, flux_note: None }
     }
 
     /// The report with the flux section fitted to the back-EMF runs.
     pub fn with_flux(mut self, flux: Option<crate::emf::FluxFit>) -> Self {
         self.flux = flux;
+        self
+    }
+
+    /// The report with a note on the flux shape (see [`FitReport::flux_note`]).
+    pub fn with_flux_note(mut self, note: Option<String>) -> Self {
+        self.flux_note = note;
         self
     }
 
@@ -147,6 +157,9 @@ impl fmt::Display for FitReport {
         }
         if let Some(flux) = &self.flux {
             write!(s, "\n{}", flux.to_string().trim_end())?;
+        }
+        if let Some(note) = &self.flux_note {
+            write!(s, "\nnote: {note}")?;
         }
         Ok(())
     }

@@ -319,12 +319,23 @@ pub fn encoder_route(
     let shaped = with_flux_torque(logs, base_used);
     let f = fit(shaped.as_deref().unwrap_or(logs), &o.encoder_fit_options(base_used))?;
     let model = Model::from_fit(&f);
-    let mut report = FitReport::new(&base.name, f).with_flux(flux);
+    let note = flux.is_none().then(|| no_back_emf_note(base));
+    let mut report = FitReport::new(&base.name, f).with_flux(flux).with_flux_note(note);
     if o.feed_forward_on {
         let check = FeedForwardCheck::new(base, &report.fit);
         report = report.with_feed_forward(check);
     }
     Ok((report, model, with_flux))
+}
+
+/// What the fit knows of the ripple that grows with the current when no log is a back-EMF
+/// run (docs/identification.md#the-flux-linkage-from-the-back-emf).
+fn no_back_emf_note(base: &Profile) -> String {
+    if base.motor.flux.is_default() {
+        "no back-EMF run among the logs (the plan's run-N-emf-…): the flux shape is not measured, so a real motor's ripple that grows with the current is fitted as detent at the logs' own current and is known there only; record the plan's back-EMF run to know it at every current (docs/identification.md#the-flux-linkage-from-the-back-emf)".into()
+    } else {
+        "no back-EMF run among the logs: the base's [motor.flux] is used as given, not measured (docs/identification.md#the-flux-linkage-from-the-back-emf)".into()
+    }
 }
 
 /// The flux section from the back-EMF runs among `logs` ([`crate::emf`]; the torque fit
