@@ -56,10 +56,11 @@ fn array<'py>(py: Python<'py>, v: Vec<f64>) -> Bound<'py, PyArray1<f64>> {
     PyArray1::from_vec(py, v)
 }
 
-/// The commanded motion's columns: `t_s`, `theta_e_rad`, `speed_rev_s`, `accel_rev_s2`,
-/// `motor_rev`.
+/// The commanded motion's columns: `t_s` (the sample's time: planned, or Klipper's print
+/// time), `theta_e_rad`, `speed_rev_s`, `accel_rev_s2`, `motor_rev`.
 fn commanded_columns<'py>(py: Python<'py>, d: &Bound<'py, PyDict>, c: &[Commanded]) -> PyResult<()> {
     let col = |f: fn(&Commanded) -> f64| array(py, c.iter().map(f).collect());
+    d.set_item("t_s", col(|x| x.t_s))?;
     d.set_item("theta_e_rad", col(|x| x.electrical_rad))?;
     d.set_item("speed_rev_s", col(|x| x.speed_rev_s))?;
     d.set_item("accel_rev_s2", col(|x| x.accel_rev_s2))?;
@@ -94,10 +95,7 @@ fn prusa_dict<'py>(
     n.set_item("valid", a.is_valid())?;
     d.set_item("annotations", n)?;
     match commanded {
-        Some(cmd) => {
-            d.set_item("t_s", array(py, cmd.iter().map(|x| x.t_s).collect()))?;
-            commanded_columns(py, &d, &cmd)?;
-        }
+        Some(cmd) => commanded_columns(py, &d, &cmd)?,
         None => {
             for k in ["t_s", "theta_e_rad", "speed_rev_s", "accel_rev_s2", "motor_rev"] {
                 d.set_item(k, py.None())?;
@@ -159,7 +157,6 @@ fn klipper_dict<'py>(
     d.set_item("direction", s.direction.name())?;
     d.set_item("sampling_freq_hz", s.rate_hz)?;
     d.set_item("log", info)?;
-    d.set_item("t_s", array(py, log.times_s[r.clone()].to_vec()))?;
     commanded_columns(py, &d, &log.commanded[r.clone()])?;
     d.set_item("accel_m_s2", array(py, log.accel_m_s2[r].to_vec()))?;
     Ok(d)
