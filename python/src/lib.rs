@@ -1,9 +1,10 @@
 //! Python bindings of stepdamp (`stepdamp._native`). Translation only: every number comes
-//! from a library crate (`stepdamp-sim`, `stepdamp-identify`, `stepdamp-study`); this
+//! from a library crate (`stepdamp-sim`, `stepdamp-identify`, `stepdamp-study`, `stepdamp-accel`); this
 //! crate converts arguments, releases the GIL around the Rust work (which Ctrl-C stops:
 //! `cancel`), and turns Rust errors into `stepdamp.StepdampError` with the same one-line
 //! message.
 
+mod accel;
 mod cancel;
 mod ident;
 mod profile;
@@ -49,6 +50,8 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sim::linear_grid, m)?)?;
     m.add_function(wrap_pyfunction!(sim::resonance, m)?)?;
     m.add_function(wrap_pyfunction!(ident::identify, m)?)?;
+    m.add_function(wrap_pyfunction!(accel::read_accel_captures, m)?)?;
+    m.add_function(wrap_pyfunction!(accel::identify_accel, m)?)?;
     m.add_function(wrap_pyfunction!(study::study_load, m)?)?;
     m.add_function(wrap_pyfunction!(study::study_from_toml, m)?)?;
     m.add_function(wrap_pyfunction!(study::study_info, m)?)?;

@@ -21,7 +21,7 @@ from typing import Any, Iterable, Sequence, Union
 import numpy as np
 
 from . import _native
-from ._native import MAX_POINTS, PRESETS, Profile, StepdampError
+from ._native import MAX_POINTS, PRESETS, Profile, StepdampError, identify_accel, read_accel_captures
 
 __all__ = [
     "MAX_POINTS",
@@ -31,8 +31,10 @@ __all__ = [
     "StudyResult",
     "SweepSummary",
     "identify",
+    "identify_accel",
     "linear_grid",
     "load_spec",
+    "read_accel_captures",
     "resonance",
     "ripple",
     "simulate",

@@ -115,6 +115,33 @@ def identify(
     name: Optional[str] = None,
     sensorless: Optional[bool] = None,
 ) -> Tuple[Profile, Dict[str, Any]]: ...
+def read_accel_captures(
+    path: Union[str, PathLike[str]],
+    *,
+    axis: str = "X",
+    periods_per_rev: int = 50,
+    mm_per_rev: float = 32.0,
+    trial: Optional[Tuple[int, float, float]] = None,
+) -> List[Dict[str, Any]]:
+    """Prusa M973/M974 captures or a Klipper log's stretches: arrays t_s (s), accel_m_s2 (m/s²),
+    theta_e_rad (rad, commanded electrical angle), speed_rev_s, accel_rev_s2, motor_rev; format,
+    direction, sampling_freq_hz (Hz) and, for Prusa, the annotations."""
+    ...
+def identify_accel(
+    paths: Union[str, PathLike[str], Sequence[Union[str, PathLike[str]]]],
+    motor: Profile,
+    axis: str,
+    *,
+    current_peak_a: Optional[float] = None,
+    current_rms_a: Optional[float] = None,
+    mm_per_rev: float = 32.0,
+    periods_per_block: int = 4,
+    klipper_trials: Optional[Dict[Union[str, PathLike[str]], Tuple[int, float, float]]] = None,
+    orders: Optional[Sequence[int]] = None,
+) -> Dict[str, Any]:
+    """The head and the ripple per direction with 95 % intervals and the validation (the
+    library's RippleFit as a dict), as the CLI's identify --accel."""
+    ...
 def study_load(path: Union[str, PathLike[str]]) -> str: ...
 def study_from_toml(text: str, origin: str = "<string>", base_dir: str = ".") -> str: ...
 def study_info(json: str) -> Tuple[int, List[str]]: ...
