@@ -47,6 +47,21 @@ fn the_sensorless_plan_as_csv_has_the_documented_columns() {
     assert!(rows[0][2].parse::<f64>().unwrap() > 0.0 && rows[1][2].parse::<f64>().unwrap() < 0.0);
 }
 
+/// The plan asks for runs at the holding current only, and says why (a second current would
+/// show the same sum of the third and fifth harmonics).
+#[test]
+fn the_sensorless_plan_says_why_one_current_is_enough() {
+    let o = stepdamp(&["identify", "plan", "--sensorless", "--motor", "patent-motor"]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        out.lines().any(|l| l.starts_with("one current:")
+            && l.contains("same sum")
+            && l.contains("docs/sensorless.md#the-flux-shape-without-a-sensor")),
+        "{out}"
+    );
+}
+
 fn logs_in(dir: &Path) -> Vec<String> {
     let mut v: Vec<String> = std::fs::read_dir(dir)
         .unwrap()

@@ -94,6 +94,10 @@ impl std::fmt::Display for SensorlessPlan {
             self.natural_rad_s / TAU
         )?;
         crate::plan::write_runs(f, &self.runs)?;
+        writeln!(
+            f,
+            "one current: the flux circle's radius gives the ripple that grows with it (phase gain, third + fifth harmonic); a second current would show the same sum, not its split (docs/sensorless.md#the-flux-shape-without-a-sensor)"
+        )?;
         write!(
             f,
             "total {:.1} s of logging; record t_s, theta_cmd_rad, i_a_a, i_b_a, v_a_v, v_b_v every control period from t = 0 (v: the mean winding voltage actually applied over the period)",
