@@ -444,8 +444,8 @@ mod tests {
         run_with_emf_lead(obs, st, w, delta, 0.0, r_true, n);
     }
 
-    /// As [`run`], with a back-EMF `lead` rad off the rotor's q axis towards +d (a real
-    /// motor's: docs/design.md#real-motors-flux-harmonics).
+    /// As [`run`], with a back-EMF turned `lead` rad off the rotor's q axis towards +d (a
+    /// real motor's: docs/design.md#real-motors-flux-harmonics).
     fn run_with_emf_lead(
         obs: &LoadAngleObserver,
         st: &mut ObserverState,
@@ -479,9 +479,9 @@ mod tests {
         }
     }
 
-    /// A back-EMF that leads the rotor's q axis by `ε` reads as a load angle `δ + ε`; with
-    /// `emf_angle_error_rad = ε` the observer turns it back and reads `δ` (the sign the
-    /// estimated law sets, docs/design.md#real-motors-flux-harmonics).
+    /// A back-EMF turned `ε` off the rotor's q axis towards +d reads as a load angle `δ + ε`;
+    /// with `emf_angle_error_rad = ε` the observer turns it back and reads `δ` (the field's
+    /// sign; the law's formula for `ε` is docs/design.md#real-motors-flux-harmonics).
     #[test]
     fn a_back_emf_lead_is_turned_back_by_the_emf_angle_error() {
         let (w, delta, lead) = (10.0, 0.2, 0.08);

@@ -190,6 +190,8 @@ pub struct SensorlessFit {
     /// The flux shape's error the radius showed against the base's shape, over all passes
     /// ([`shape::ShapeFit::total_since`]; `None`: fewer than two logs determine it).
     pub shape: Option<shape::ShapeFit>,
+    /// Why a correction of the shape was not applied, if one was refused.
+    pub shape_refused: Option<String>,
     /// The flux section the angles and torques were computed with: the base's, corrected by
     /// [`shape::ShapeFit::corrected`] when something stood out.
     pub flux: stepdamp_profile::flux::FluxSection,
@@ -224,15 +226,32 @@ pub fn identify(
     let mut flux = base.motor.flux.clone();
     let mut estimated = estimate(logs, &winding_with(base, &flux), o)?;
     let mut pass = shape::ShapeFit::of(&estimated.radius);
+    let mut shape_refused = None;
     for _ in 0..SHAPE_PASSES {
         let Some(next) = pass.as_ref().map(|p| p.corrected(&flux)).filter(|n| *n != flux) else { break };
-        flux = next;
-        estimated = estimate(logs, &winding_with(base, &flux), o)?;
-        pass = shape::ShapeFit::of(&estimated.radius);
+        // A section outside the profile's limits is not a magnet's (a wrong L or R, a sensor's
+        // gain): the angle on it may not converge, and no profile could hold it.
+        if let Err(e) = base.edited(&base.name, |d| d.motor.flux = next.clone()) {
+            shape_refused = Some(format!(
+                "the flux radius asks for a [motor.flux] the profile refuses ({e}); kept the previous shape: check L, R and the sensors' gains"
+            ));
+            break;
+        }
+        match estimate(logs, &winding_with(base, &next), o) {
+            Ok(e) => {
+                flux = next;
+                estimated = e;
+                pass = shape::ShapeFit::of(&estimated.radius);
+            }
+            Err(e) => {
+                shape_refused = Some(format!("no angle on the corrected flux shape ({e}); kept the previous shape"));
+                break;
+            }
+        }
     }
     let shape = pass.map(|last| last.total_since(&base.motor.flux, &flux));
     let fit = crate::fit::fit(&estimated.logs, fit)?;
-    Ok(SensorlessFit { estimated, fit, shape, flux })
+    Ok(SensorlessFit { estimated, fit, shape, flux, shape_refused })
 }
 
 #[cfg(all(test, feature = "simulate"))]

@@ -96,7 +96,7 @@ impl std::fmt::Display for SensorlessPlan {
         crate::plan::write_runs(f, &self.runs)?;
         writeln!(
             f,
-            "one current: the flux circle's radius gives the ripple that grows with it (phase gain, third + fifth harmonic); a second current would show the same sum, not its split (docs/sensorless.md#the-flux-shape-without-a-sensor)"
+            "one current: the flux circle's radius gives the phase gain and the sum of the third and fifth flux harmonics; a second current would show the same sum, not its split (docs/sensorless.md#the-flux-shape-without-a-sensor)"
         )?;
         write!(
             f,

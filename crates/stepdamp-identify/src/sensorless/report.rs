@@ -34,8 +34,10 @@ pub struct SensorlessReport {
     pub notes: Vec<String>,
     /// The flux shape's error the radius showed against the base's shape (`None`: fewer than
     /// two logs).
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub flux_shape: Option<super::shape::ShapeFit>,
     /// The `[motor.flux]` section written, when it differs from the base's.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub flux_written: Option<stepdamp_profile::flux::FluxSection>,
     /// The fit's report, as on the servo route.
     pub fit: FitReport,
@@ -75,10 +77,11 @@ impl SensorlessReport {
         let flux_written = (f.flux != *base_flux).then(|| f.flux.clone());
         if flux_written.as_ref().is_some_and(|w| w.harmonics != base_flux.harmonics) {
             notes.push(format!(
-                "the flux radius gives the third and fifth harmonics' sum only: {:.0} % of it is written to the third, as on measured motors (docs/sensorless.md#the-flux-shape-without-a-sensor); the open-loop ripple follows, the servo-mode (i_q) ripple is uncertain by the split",
+                "the flux radius gives the third and fifth harmonics' sum only: {:.0} % of it is written to the third, as on measured motors (docs/sensorless.md#the-flux-shape-without-a-sensor); the ripple that grows with the current (open loop and servo) is uncertain by that split",
                 100.0 * super::shape::THIRD_SHARE
             ));
         }
+        notes.extend(f.shape_refused.clone());
         SensorlessReport {
             route: "sensorless",
             resistance_ohm: e.resistance_ohm,

@@ -146,7 +146,7 @@ impl ShapeFit {
     /// The whole shape error against `base`, after the passes that gave `written`, with
     /// `self` the last pass's (what is left): values `written − base` plus what is left,
     /// intervals the last pass's (the noise is the same in every pass; the first pass alone
-    /// is biased by the terms of second order, `g·X₃` and the like, about 10⁻⁴).
+    /// is biased by the terms of second order: about −g² in `g`, 10⁻⁴ in the sum).
     pub fn total_since(&self, base: &FluxSection, written: &FluxSection) -> ShapeFit {
         let sum = |f: &FluxSection| {
             f.harmonics
@@ -207,7 +207,7 @@ fn mean_var(v: &[f64]) -> (f64, f64) {
 }
 
 /// Two-sided 95 % quantile of Student's t with `dof` degrees of freedom (tables; 1.96 from
-/// 30 on, where the table is within 2 % of it).
+/// 30 on, where the table is within 4 % of it).
 fn student_t95(dof: usize) -> f64 {
     const T: [f64; 29] = [
         12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160, 2.145, 2.131,
