@@ -397,28 +397,23 @@ impl Servo {
 }
 
 /// The slow run's encoder count rate over the servo bandwidth in rad/s (rule 2 of the module
-/// documentation): the plan's margin over the fit's rule *a count rate above the drive's
-/// reaction* (docs/identification.md#what-the-fit-needs-and-what-it-does-when-it-does-not-get-it).
-/// That rule is not a threshold on the count rate: it leaves out a slow level whose
-/// friction, fitted alone, is more than 4 % short of the fast level's while the drive reacts
-/// to each count ([`crate::conditions::slow_levels_to_leave_out`]). The plan's `ω_b` is the
-/// nominal bandwidth of the drive's tuning; a drive tuned to it by another rule reacts
-/// faster. Measured on the independent generator (`tests/independent/servo_real.rs`: PID
-/// with stiffness `3·J·ω_b²`, speed filter at `5·f_b`), 16 motors of
-/// `tests/real_independent.rs` with the preset's `J` in the base: at a count rate of 1.0×
-/// `ω_b` the slow runs were left out on all 16 (friction 8 % or more short), at 1.1× on 15
-/// and at 1.15× on 6 (both speeds scaled), at 1.2× on 2, at 1.25× on none (`J` fitted on all
-/// 16, worst 0.82 of the tolerance). So 1.25, the first factor tried that keeps them all; it
-/// leaves 1.6 between the speeds ([`FAST_COUNT_RATE_PER_BANDWIDTH`]).
+/// documentation): the plan's margin over the fit's count-rate rule (docs/identification.md#what-the-fit-needs-and-what-it-does-when-it-does-not-get-it,
+/// [`crate::conditions::slow_levels_to_leave_out`]: a slow level whose friction is over 4 %
+/// short of the fast level's while the drive reacts to each count is left out). A drive
+/// tuned to the plan's `ω_b` by another rule may react faster than the plan's: on the
+/// independent generator (`tests/independent/servo_real.rs`: stiffness `3·J·ω_b²`, speed
+/// filter at `5·f_b`), 16 motors of `tests/real_independent.rs` with the preset's `J`, the
+/// slow runs were left out on all 16 at a count rate of 1.0× `ω_b` (friction 8 % or more
+/// short), on 15 at 1.1× and 6 at 1.15× (both speeds scaled), on 2 at 1.2×, on none at 1.25×
+/// (`J` fitted on all, worst 0.82 of the tolerance): the first factor tried that keeps them.
 pub const SLOW_COUNT_RATE_MARGIN: f64 = 1.25;
 
 /// The fast run's encoder count rate over the servo bandwidth in rad/s (rule 3 of the module
-/// documentation): its highest harmonic at 0.63 `f_b` (4000 counts, `Nr` 50, order 4), under
-/// the fit's warning at 0.8 `f_b`. It does not grow with [`SLOW_COUNT_RATE_MARGIN`]: with both
-/// speeds ×1.25 the fast runs' harmonic passed the real loop's bandwidth on the 50 random
-/// motors of `src/tests.rs` whose `J` is ×2.5–3 the base's (the drive tuned for the base's),
-/// their friction fitted with the base's `J` came out 5–46 % high, and the count-rate rule
-/// left the slow runs out on 10 of them.
+/// documentation): order 4 at 0.63 `f_b` (4000 counts, `Nr` 50), under the fit's warning at
+/// 0.8 `f_b`. It does not grow with [`SLOW_COUNT_RATE_MARGIN`]: scaled ×1.25 too, it put order
+/// 4 past the real loop of the 10 random motors of `src/tests.rs` with `J` ×2.5–3 the base's;
+/// their fast runs' friction (fitted with the base's `J`) came out 3–69 % high, and the
+/// count-rate rule left their slow runs out.
 pub const FAST_COUNT_RATE_PER_BANDWIDTH: f64 = 2.0;
 
 /// The two speeds of the plan (rules 2 and 3 of the module documentation).
