@@ -23,138 +23,16 @@
 
 #![cfg(feature = "simulate")]
 
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+mod real;
+
 use rayon::prelude::*;
-use std::f64::consts::PI;
+use real::{OPEN_LOOP_HALF, OPEN_LOOP_HOLD, SERVO_HALF_AMP, compensation, real_motor, user_base};
 use stepdamp_identify::from_logs::{IdentifyOptions, encoder_route};
 use stepdamp_identify::plan::{PlanOptions, plan, simulate_plan};
-use stepdamp_profile::flux::{FluxHarmonic, FluxSection};
-use stepdamp_profile::ripple::{RippleHarmonic, ripple};
-use stepdamp_profile::{DetentTerm, Profile};
-use stepdamp_sim::sweep::{SweepSpec, sweep};
-use stepdamp_sim::{Compensation, Mode, RunSpec, SimOptions};
+use stepdamp_sim::Compensation;
 
 /// Motors CI runs (seeds 0..CI_MOTORS).
 const CI_MOTORS: u64 = 6;
-
-/// Random real motor `seed` (module documentation).
-fn real_motor(seed: u64) -> Profile {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let mut phase = || rng.random_range(-PI..PI);
-    let (p4, p2, p1, a3, a5) = (phase(), phase(), phase(), phase(), phase());
-    Profile::preset("patent-motor")
-        .unwrap()
-        .edited(&format!("real-{seed}"), |d| {
-            d.motor.inertia_kg_m2 *= rng.random_range(0.5..2.0);
-            d.motor.coulomb_friction_nm = rng.random_range(0.005..0.020);
-            d.motor.detent = [(4u16, p4), (2, p2), (1, p1)]
-                .iter()
-                .map(|&(order, phase_rad)| DetentTerm {
-                    order,
-                    amplitude_nm: rng.random_range(0.004..0.030),
-                    phase_rad,
-                })
-                .collect();
-            d.motor.flux = FluxSection {
-                phase_b_gain: rng.random_range(-0.05..0.05),
-                harmonics: vec![
-                    FluxHarmonic { order: 3, ratio: rng.random_range(0.0..0.02), phase_rad: a3 },
-                    FluxHarmonic { order: 5, ratio: rng.random_range(0.0..0.01), phase_rad: a5 },
-                ],
-            };
-        })
-        .unwrap()
-}
-
-/// The user's base: the preset without detent or flux (its `J` and `Fs`).
-fn user_base() -> Profile {
-    Profile::preset("patent-motor").unwrap().edited("patent-motor", |d| d.motor.detent.clear()).unwrap()
-}
-
-/// The worst harmonic error of `id` against `truth` over the three operating points, as a
-/// fraction of the tolerance max(10 %, 1 mN·m), with where it is.
-fn worst_ripple_error(truth: &Profile, id: &Profile) -> (f64, String) {
-    let hold = truth.drive.holding_current_a;
-    let mut worst = (0.0, String::new());
-    for (what, i_d, i_q) in
-        [("open loop I_hold", hold, 0.0), ("open loop I_hold/2", hold / 2.0, 0.0), ("servo iq 0.5 A", 0.0, 0.5)]
-    {
-        let (t, i) = (ripple(truth, i_d, i_q).unwrap(), ripple(id, i_d, i_q).unwrap());
-        for h in t.harmonics.iter().filter(|h| h.order <= 8) {
-            let other = i.harmonics.iter().find(|x| x.order == h.order).copied();
-            let z = |r: &RippleHarmonic| (r.amplitude_nm * r.phase_rad.cos(), r.amplitude_nm * r.phase_rad.sin());
-            let (a, b) = (z(h), other.as_ref().map_or((0.0, 0.0), z));
-            let err = (a.0 - b.0).hypot(a.1 - b.1) / (0.1 * h.amplitude_nm).max(1e-3);
-            if err > worst.0 {
-                worst = (
-                    err,
-                    format!(
-                        "{what}, order {}: {:.2} mN·m, identified {:.2}",
-                        h.order,
-                        1e3 * h.amplitude_nm,
-                        1e3 * other.map_or(0.0, |o| o.amplitude_nm)
-                    ),
-                );
-            }
-        }
-    }
-    worst
-}
-
-/// The peak-to-peak velocity error near the resonance of order `k` (largest over five speeds
-/// ±10 %) of `motor` in open loop with `controller`, for each compensation of `comps`.
-fn peaks(motor: &Profile, controller: &Profile, k: u16, comps: &[Compensation]) -> Vec<f64> {
-    let w = motor.resonance_speed_rad_s(k);
-    let spec = SweepSpec {
-        speeds_rad_s: [0.9, 0.95, 1.0, 1.05, 1.1].iter().map(|f| f * w).collect(),
-        modes: vec![Mode::OpenLoop],
-        compensations: comps.to_vec(),
-        run: RunSpec::at(w),
-        options: SimOptions::default(),
-        table: None,
-    };
-    let rows = sweep(motor, controller, &spec, &|| {}).unwrap();
-    comps
-        .iter()
-        .map(|c| rows.iter().filter(|r| r.compensation == *c).map(|r| r.vel_err_pp_rad_s).fold(0.0, f64::max))
-        .collect()
-}
-
-/// The compensation check of the module documentation: the identified profile's share of the
-/// true profile's dB reduction at orders 4 and 1 (patent's law), the estimated mode's
-/// reduction (×, orders 4, 2, 1) with the identified profile, and, over the orders where
-/// that is below 10×, its share in dB of the true profile's (∞ when every order reaches 10×). Returns `(worst share, worst estimated ×, worst ratio, a line)`.
-fn compensation(truth: &Profile, id: &Profile) -> (f64, f64, f64, String) {
-    use Compensation::{Estimated, Off, Patent};
-    let (mut share, mut est, mut ratio, mut line) = (f64::INFINITY, f64::INFINITY, f64::INFINITY, String::new());
-    for k in [4u16, 2, 1] {
-        let with_id = peaks(truth, id, k, &[Off, Patent, Estimated]);
-        let with_truth = peaks(truth, truth, k, &[Off, Patent, Estimated]);
-        let (x_est, x_est_true) = (with_id[0] / with_id[2], with_truth[0] / with_truth[2]);
-        est = est.min(x_est);
-        // Met when ≥ 10× (the bound) or, where the law falls short of that with the
-        // true profile too, ≥ 80 % of the true profile's dB.
-        let met = if x_est >= 10.0 {
-            f64::INFINITY
-        } else if x_est_true >= 10.0 || x_est_true <= 1.0 {
-            // Short of 10x where the true profile reaches it (or does nothing): not met,
-            // unless it does at least as well.
-            if x_est >= x_est_true { f64::INFINITY } else { 0.0 }
-        } else {
-            x_est.log10() / x_est_true.log10()
-        };
-        ratio = ratio.min(met);
-        line += &format!(" k{k}: estimated {x_est:.1}x (true profile {x_est_true:.1}x)");
-        if k != 2 {
-            let (db_id, db_true) =
-                (20.0 * (with_id[0] / with_id[1]).log10(), 20.0 * (with_truth[0] / with_truth[1]).log10());
-            share = share.min(db_id / db_true);
-            line += &format!(", patent {db_id:.1} dB of the truth's {db_true:.1} dB");
-        }
-    }
-    (share, est, ratio, line)
-}
 
 /// What one motor gives, by the new plan and by the patent's route (its four servo runs).
 struct Outcome {
@@ -185,8 +63,17 @@ fn outcome(seed: u64, p: &stepdamp_identify::plan::Plan, noise: f64) -> Outcome 
     let (_, patent_model, _) = encoder_route(&logs[..4], &p.profile, &io).unwrap();
     let patent = patent_model.apply_to(&p.profile, Some("patent-route"), "patent-route").unwrap();
     let (p_share, p_est, _, _) = compensation(&m, &patent);
-    let patent_route = (worst_ripple_error(&m, &patent).0, p_share, p_est);
-    Outcome { seed, ripple: worst_ripple_error(&m, &id), share, estimated, estimated_ratio, patent_route, line }
+    let patent_route =
+        (real::worst_ripple_error(&m, &patent, &[OPEN_LOOP_HOLD, OPEN_LOOP_HALF, SERVO_HALF_AMP]).0, p_share, p_est);
+    Outcome {
+        seed,
+        ripple: real::worst_ripple_error(&m, &id, &[OPEN_LOOP_HOLD, OPEN_LOOP_HALF, SERVO_HALF_AMP]),
+        share,
+        estimated,
+        estimated_ratio,
+        patent_route,
+        line,
+    }
 }
 
 /// Identifies motors `seeds`, prints each and the summary of both routes, and asserts the

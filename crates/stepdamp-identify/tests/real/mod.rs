@@ -1,8 +1,6 @@
 //! The real-motor family shared by the route tests (docs/identification.md#the-real-motor-family):
 //! the motors, the user's base, the ripple comparison and the compensation check.
 
-#![allow(dead_code)]
-
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::f64::consts::PI;
