@@ -242,14 +242,23 @@ mod tests {
 
     const CLI: Names = Names { paths: "--accel", axis: "--axis", motor: "--motor", trial: "--klipper-trial" };
 
+    /// A directory of one test's own, removed when dropped.
+    struct Dir(PathBuf);
+
+    impl Drop for Dir {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+
     /// A gzip-headed file and an empty text file in a directory of this test's own.
-    fn files(test: &str) -> (PathBuf, PathBuf) {
+    fn files(test: &str) -> (Dir, PathBuf, PathBuf) {
         let dir = std::env::temp_dir().join(format!("stepdamp-accel-sources-{}-{test}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let (gz, text) = (dir.join("LOG.json.gz"), dir.join("session.log"));
         std::fs::write(&gz, [0x1f, 0x8b, 0, 0]).unwrap();
         std::fs::write(&text, "").unwrap();
-        (gz, text)
+        (Dir(dir), gz, text)
     }
 
     fn err(paths: &[PathBuf], trials: &[(PathBuf, TrialShift)]) -> String {
@@ -260,7 +269,7 @@ mod tests {
 
     #[test]
     fn klipper_logs_and_prusa_captures_together_are_refused_naming_the_option() {
-        let (gz, text) = files("mixed");
+        let (_dir, gz, text) = files("mixed");
         assert_eq!(
             err(&[gz, text], &[]),
             "--accel: Klipper logs (gzip) and Prusa captures (text) mixed: give one kind"
@@ -269,7 +278,7 @@ mod tests {
 
     #[test]
     fn a_trial_for_a_log_not_given_or_with_prusa_captures_is_refused() {
-        let (gz, text) = files("trials");
+        let (_dir, gz, text) = files("trials");
         let e = err(std::slice::from_ref(&gz), &[(PathBuf::from("other.json.gz"), TRIAL)]);
         assert_eq!(e, "--klipper-trial: other.json.gz is not one of the --accel logs");
         let e = err(std::slice::from_ref(&text), &[(text.clone(), TRIAL)]);
@@ -278,7 +287,7 @@ mod tests {
 
     #[test]
     fn no_capture_at_all_is_refused() {
-        let (_, text) = files("empty");
+        let (_dir, _, text) = files("empty");
         let e = err(std::slice::from_ref(&text), &[]);
         assert!(e.starts_with(&format!("{}: no M973/M974 capture", text.display())) && !e.contains('\n'), "{e}");
         assert_eq!(err(&[], &[]), "no captures in the logs given");
