@@ -2,7 +2,9 @@
 //! `M973`/`M974` captures or a Klipper motion-analysis log as the library does
 //! (`stepdamp_accel::prusa`, `stepdamp_accel::klipper`), and `identify_accel` identifies
 //! the head and the motor's ripple per direction (`stepdamp_accel::ripple::identify_ripple`,
-//! the CLI's `identify --accel`). Translation only: every number is the library's.
+//! the CLI's `identify --accel`): both read and fit through `stepdamp_accel::sources` and
+//! write the file with `stepdamp_accel::ripple::file`. Translation only: every number is the
+//! library's.
 
 use crate::cancel::interruptible;
 use crate::err;
@@ -12,27 +14,19 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::collections::HashMap;
 use std::f64::consts::TAU;
-use std::io::Read;
 use std::ops::Range;
-use std::path::{Path, PathBuf};
-use stepdamp_accel::capture::SETTLE_S;
-use stepdamp_accel::klipper::segment::MIN_SEGMENT_S;
+use std::path::PathBuf;
 use stepdamp_accel::klipper::{KlipperOptions, Log, TrialShift};
-use stepdamp_accel::ripple::{Direction, Interval95, RippleCapture, RippleFit, RippleOptions, identify_ripple};
-use stepdamp_accel::{AccelCapture, Axis, Commanded, Gcode, Reconstruction};
+use stepdamp_accel::ripple::file::RippleFile;
+use stepdamp_accel::ripple::{Direction, Interval95, RippleCapture, RippleFit, RippleOptions};
+use stepdamp_accel::sources::{self, Names, SourcesError};
+use stepdamp_accel::{AccelCapture, Axis, Commanded, Reconstruction};
 use stepdamp_export::model::RunCurrent;
 use stepdamp_export::prusa::Firmware;
 
 /// A trial as Python gives it: `(H, U, PHI)`, the order, the shift's amplitude (rad) and
 /// phase (rad) of `U·sin(H·θe + PHI)`.
 type TrialArg = (u32, f64, f64);
-
-/// Whether `path` starts with the gzip magic `1f 8b` (a Klipper log) rather than text (Prusa
-/// captures). A file that cannot be opened counts as text, whose reader names it.
-fn is_gzip(path: &Path) -> bool {
-    let mut magic = [0u8; 2];
-    std::fs::File::open(path).and_then(|mut f| f.read_exact(&mut magic)).is_ok() && magic == [0x1f, 0x8b]
-}
 
 /// `X` or `Y` (either case): the motor the captures moved (on CoreXY the A or B motor).
 fn axis_of(s: &str) -> PyResult<Axis> {
@@ -43,8 +37,9 @@ fn axis_of(s: &str) -> PyResult<Axis> {
     }
 }
 
-fn axis_letter(a: Axis) -> &'static str {
-    if a == Axis::X { "X" } else { "Y" }
+/// `'X'` or `'Y'`.
+fn axis_letter(a: Axis) -> char {
+    if a == Axis::X { 'X' } else { 'Y' }
 }
 
 fn trial_shift((harmonic, amplitude_rad, phase_rad): TrialArg) -> TrialShift {
@@ -79,7 +74,7 @@ fn prusa_dict<'py>(
     d.set_item("source", &c.source)?;
     d.set_item("line", c.line)?;
     d.set_item("gcode", c.gcode.map(|g| g.to_string()))?;
-    d.set_item("axis", c.gcode.map(|g| axis_letter(g.axis())))?;
+    d.set_item("axis", c.gcode.map(|g| axis_letter(g.axis()).to_string()))?;
     let direction = c.gcode.map(|g| if g.phase_direction() > 0.0 { Direction::Forward } else { Direction::Backward });
     d.set_item("direction", direction.map(Direction::name))?;
     let a = &c.annotations;
@@ -207,14 +202,14 @@ pub fn read_accel_captures<'py>(
     let axis = axis_of(axis)?;
     let r = Reconstruction { periods_per_rev, start_angle_rad: 0.0, first_sample_s: 0.0, mm_per_rev };
     let read = interruptible(py, move |_| -> Result<FileRead, String> {
-        if is_gzip(&path) {
+        if sources::is_klipper_log(&path) {
             let o = KlipperOptions { axis, accelerometer: None, trial: trial.map(trial_shift) };
             let log = stepdamp_accel::klipper::read_file(&path, &o).map_err(|e| e.to_string())?;
             let s = stretches(&log);
             return Ok(FileRead::Klipper(Box::new(log), s));
         }
         if trial.is_some() {
-            return Err(no_trial_message("trial"));
+            return Err(SourcesError::TrialWithPrusa { trial: "trial" }.to_string());
         }
         let captures = stepdamp_accel::prusa::read_file(&path).map_err(|e| e.to_string())?;
         let with_motion = captures
@@ -235,11 +230,6 @@ pub fn read_accel_captures<'py>(
     }
 }
 
-/// Why `what` (a trial) is refused with Prusa captures.
-fn no_trial_message(what: &str) -> String {
-    format!("{what}: goes with Klipper logs (LOG.json.gz); Prusa captures carry their trial in M973")
-}
-
 /// The run current from the one of `current_peak_a`, `current_rms_a` given.
 fn run_current(peak: Option<f64>, rms: Option<f64>) -> PyResult<RunCurrent> {
     match (peak, rms) {
@@ -251,82 +241,8 @@ fn run_current(peak: Option<f64>, rms: Option<f64>) -> PyResult<RunCurrent> {
     }
 }
 
-/// Every Klipper log with its trial, checked against the profile's periods per revolution.
-fn klipper_logs(paths: &[PathBuf], axis: Axis, trials: &[(PathBuf, TrialArg)], nr: u32) -> Result<Vec<Log>, String> {
-    for (p, _) in trials {
-        if !paths.contains(p) {
-            return Err(format!("klipper_trials: {} is not one of the paths", p.display()));
-        }
-    }
-    let mut logs = Vec::new();
-    for path in paths {
-        let trial = trials.iter().find(|(p, _)| p == path).map(|x| trial_shift(x.1));
-        let log = stepdamp_accel::klipper::read_file(path, &KlipperOptions { axis, accelerometer: None, trial })
-            .map_err(|e| e.to_string())?;
-        if log.periods_per_rev() != nr {
-            return Err(format!(
-                "{}: full_steps_per_rotation {} is {} electrical periods per revolution, the profile's pole pairs {nr}: a wrong motor or axis",
-                log.source,
-                log.full_steps_per_rotation,
-                log.periods_per_rev()
-            ));
-        }
-        logs.push(log);
-    }
-    Ok(logs)
-}
-
-/// Every capture of every Prusa log, refusing one of another axis.
-fn prusa_captures(paths: &[PathBuf], axis: Axis) -> Result<Vec<AccelCapture>, String> {
-    let mut all = Vec::new();
-    for path in paths {
-        for c in stepdamp_accel::prusa::read_file(path).map_err(|e| e.to_string())? {
-            if let Some(g) = c.gcode.filter(|g: &Gcode| g.axis() != axis) {
-                return Err(format!(
-                    "{}:{}: `{g}` moved the other axis than axis {}",
-                    c.source,
-                    c.line,
-                    axis_letter(axis)
-                ));
-            }
-            all.push(c);
-        }
-    }
-    if all.is_empty() {
-        return Err("no captures in the paths given".into());
-    }
-    Ok(all)
-}
-
-/// Reads `paths` (all Klipper logs or all Prusa captures) and fits, off the GIL; returns the
-/// fit and the format's name.
-fn read_and_fit(
-    paths: &[PathBuf],
-    axis: Axis,
-    trials: &[(PathBuf, TrialArg)],
-    o: &RippleOptions,
-    r: &Reconstruction,
-) -> Result<(RippleFit, &'static str), String> {
-    let kinds: Vec<bool> = paths.iter().map(|p| is_gzip(p)).collect();
-    if kinds.iter().any(|&k| k) && !kinds.iter().all(|&k| k) {
-        return Err("paths: Klipper logs (gzip) and Prusa captures (text) mixed: give one kind".into());
-    }
-    if kinds.first().copied().unwrap_or(false) {
-        let logs = klipper_logs(paths, axis, trials, o.periods_per_rev)?;
-        let segments: Vec<_> = logs.iter().flat_map(Log::segments).collect();
-        if segments.is_empty() {
-            return Err(format!(
-                "no stretch of steady motion in the Klipper logs (at least {MIN_SEGMENT_S} s between ramps, the first and last {SETTLE_S} s cut): move at constant speed or sweep slowly (docs/accelerometer.md#klippers-motion-analysis-logs)"
-            ));
-        }
-        return Ok((identify_ripple(&segments, r, o).map_err(|e| e.to_string())?, "klipper"));
-    }
-    if !trials.is_empty() {
-        return Err(no_trial_message("klipper_trials"));
-    }
-    let captures = prusa_captures(paths, axis)?;
-    Ok((identify_ripple(&captures, r, o).map_err(|e| e.to_string())?, "prusa"))
-}
+/// Python's names of the inputs, in the library's messages.
+const NAMES: Names = Names { paths: "paths", axis: "axis", motor: "motor", trial: "klipper_trials" };
 
 fn interval<'py>(py: Python<'py>, i: Interval95) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
@@ -421,8 +337,10 @@ pub enum PathsArg {
 /// (per direction and order: `amplitude_nm` and `phase_rad` with intervals, torque on the
 /// rotor `−A·sin(k·θe + φ)`; `radius95_nm`, `blocks`, `speeds_rev_s`, `explained_share`),
 /// `not_identified` (with `reason`), the validation `explained_share`, `blocks`, `captures`;
-/// and `format` (`"prusa"`, `"klipper"`), `motor`, `axis`, `current_peak_a` and `text`, the
-/// report the CLI prints. Errors are the CLI's one-line messages.
+/// and `format` (`"prusa"`, `"klipper"`), `motor`, `axis`, `current_peak_a`, `text`, the
+/// report the CLI prints, and `toml`, the file the CLI writes (docs/files.md#identified-ripple-toml),
+/// byte for byte. Errors are the library's one-line messages the CLI prints, naming these
+/// arguments (`paths`, `axis`, `motor`, `klipper_trials`).
 #[pyfunction]
 #[pyo3(signature = (paths, motor, axis, *, current_peak_a = None, current_rms_a = None, mm_per_rev = 32.0,
     periods_per_block = 4, klipper_trials = None, orders = None))]
@@ -443,7 +361,8 @@ pub fn identify_accel<'py>(
         PathsArg::One(p) => vec![p],
         PathsArg::Many(v) => v,
     };
-    let klipper_trials: Vec<(PathBuf, TrialArg)> = klipper_trials.unwrap_or_default().into_iter().collect();
+    let klipper_trials: Vec<(PathBuf, TrialShift)> =
+        klipper_trials.unwrap_or_default().into_iter().map(|(p, t)| (p, trial_shift(t))).collect();
     let axis = axis_of(axis)?;
     let run = run_current(current_peak_a, current_rms_a)?;
     if paths.is_empty() {
@@ -464,11 +383,16 @@ pub fn identify_accel<'py>(
     };
     let r =
         Reconstruction { periods_per_rev: o.periods_per_rev, start_angle_rad: 0.0, first_sample_s: 0.0, mm_per_rev };
-    let (fit, format) = interruptible(py, |_| read_and_fit(&paths, axis, &klipper_trials, &o, &r))?;
+    let (fit, format) = interruptible(py, |_| -> Result<_, String> {
+        let s = sources::read(&paths, axis, &klipper_trials, o.periods_per_rev, &NAMES).map_err(|e| e.to_string())?;
+        Ok((s.fit(&r, &o).map_err(|e| e.to_string())?, s.format()))
+    })?;
+    let toml = RippleFile::new(&fit, &base.name, axis_letter(axis), run.peak_a()).to_toml_string().map_err(err)?;
     let d = fit_dict(py, &fit)?;
     d.set_item("format", format)?;
+    d.set_item("toml", toml)?;
     d.set_item("motor", &base.name)?;
-    d.set_item("axis", axis_letter(axis))?;
+    d.set_item("axis", axis_letter(axis).to_string())?;
     d.set_item("current_peak_a", run.peak_a())?;
     Ok(d)
 }

@@ -140,7 +140,8 @@ def identify_accel(
     orders: Optional[Sequence[int]] = None,
 ) -> Dict[str, Any]:
     """The head and the ripple per direction with 95 % intervals and the validation (the
-    library's RippleFit as a dict), as the CLI's identify --accel."""
+    library's RippleFit as a dict), as the CLI's identify --accel; "text" is the report it
+    prints and "toml" the file it writes (docs/files.md#identified-ripple-toml)."""
     ...
 def study_load(path: Union[str, PathLike[str]]) -> str: ...
 def study_from_toml(text: str, origin: str = "<string>", base_dir: str = ".") -> str: ...

@@ -161,7 +161,7 @@ def test_mixed_kinds_trials_of_other_files_and_a_missing_current_are_refused(tmp
         stepdamp.identify_accel([log], motor, "X", current_peak_a=0.9, klipper_trials={tmp_path / "x": (4, 0.1, 0)})
     with pytest.raises(StepdampError, match="Prusa captures carry their trial in M973"):
         stepdamp.identify_accel([M973], motor, "X", current_peak_a=0.9, klipper_trials={M973: (4, 0.1, 0)})
-    with pytest.raises(StepdampError, match="trial: goes with Klipper logs"):
+    with pytest.raises(StepdampError, match="trial goes with Klipper logs"):
         stepdamp.read_accel_captures(M973, trial=(4, 0.1, 0.0))
     with pytest.raises(StepdampError, match="the run current is needed"):
         stepdamp.identify_accel([M973], motor, "X")
@@ -207,6 +207,7 @@ def test_identify_accel_gives_the_clis_head_ripple_and_validation_for_the_same_s
     want = tomllib.loads(out.read_text())
     got = stepdamp.identify_accel([session], Profile.load(REAL), "X", current_peak_a=0.9)
     assert got["text"] in stdout
+    assert got["toml"] == out.read_text()
     assert (got["format"], got["motor"], got["axis"], got["current_peak_a"]) == ("prusa", want["motor"], "X", 0.9)
     for k in ("captures", "blocks"):
         assert got[k] == want[k]

@@ -22,7 +22,9 @@
 //! - [`refine`]: one influence step from a session's captures, per harmonic and direction,
 //!   added to the table in use.
 //! - [`ripple`]: the head and the motor's ripple in N·m from a speed sweep, with intervals
-//!   and a validation.
+//!   and a validation, and the TOML file of it ([`ripple::file`]).
+//! - [`sources`]: the fit's inputs as paths (Klipper logs or Prusa captures), read, checked
+//!   and fitted: what the CLI and the Python binding share.
 //! - [`timing`]: an estimate of when the first sample was taken, from the two marker moves.
 //!
 //! Formats, equations and sign conventions: `docs/accelerometer.md#accelerometer-captures`.
@@ -37,6 +39,7 @@ pub mod plan;
 pub mod prusa;
 pub mod refine;
 pub mod ripple;
+pub mod sources;
 mod timeline;
 pub mod timing;
 

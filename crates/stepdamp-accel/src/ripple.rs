@@ -26,6 +26,7 @@
 //! 95 % intervals: the covariance `σ²·(JᵀWJ)⁻¹` (`σ²` from the weighted residuals) through the
 //! delta method (normal quantile 1.96; for `T_k` a disc of radius `√(5.99·λ_max)`).
 
+pub mod file;
 mod fit;
 
 use crate::capture::{AccelCapture, CaptureError, Gcode, MAX_HARMONIC, Reconstruction};

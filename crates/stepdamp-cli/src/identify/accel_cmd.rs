@@ -1,21 +1,19 @@
 //! `stepdamp identify --accel CAPTURE…`: the head and the motor's ripple in N·m from
 //! accelerometer captures (docs/accelerometer.md#identifying-the-ripple-from-captures),
 //! printed and written as the TOML of docs/files.md#identified-ripple-toml. Translation
-//! only: `stepdamp_accel::ripple` reads and fits.
+//! only: `stepdamp_accel::sources` reads and fits, `stepdamp_accel::ripple::file` writes.
 
 use super::args::check_output_dir;
 use super::fit_cmd::FitArgs;
 use crate::common::{load_motor, write_atomic};
 use anyhow::{Result, anyhow, bail};
-use serde::Serialize;
 use std::f64::consts::TAU;
-use std::io::Read;
 use std::path::PathBuf;
-use stepdamp_accel::capture::SETTLE_S;
-use stepdamp_accel::klipper::segment::MIN_SEGMENT_S;
-use stepdamp_accel::klipper::{KlipperOptions, Log, TrialShift};
-use stepdamp_accel::ripple::{Interval95, RippleFit, RippleOptions, identify_ripple};
-use stepdamp_accel::{Axis, Reconstruction};
+use stepdamp_accel::Reconstruction;
+use stepdamp_accel::klipper::TrialShift;
+use stepdamp_accel::ripple::RippleOptions;
+use stepdamp_accel::ripple::file::RippleFile;
+use stepdamp_accel::sources::{self, Names, Sources};
 use stepdamp_export::escape;
 use stepdamp_export::prusa::Firmware;
 
@@ -58,63 +56,35 @@ pub(super) fn run_accel_cmd(a: &FitArgs) -> Result<()> {
         first_sample_s: 0.0,
         mm_per_rev: a.mm_per_rev,
     };
-    let fit = if klipper_logs(&a.accel)? {
-        let logs = read_klipper_logs(a, axis, o.periods_per_rev)?;
-        let segments: Vec<_> = logs.iter().flat_map(Log::segments).collect();
-        if segments.is_empty() {
-            bail!(
-                "no stretch of steady motion in the Klipper logs (at least {MIN_SEGMENT_S} s between ramps, the first and last {SETTLE_S} s cut): move at constant speed or sweep slowly (docs/accelerometer.md#klippers-motion-analysis-logs)"
-            );
-        }
-        let fit = identify_ripple(&segments, &r, &o)?;
-        let n = logs.len();
-        outln!(
-            "{} stretches of {n} Klipper logs of axis {letter} on {} at {run}; belt {} mm/rev",
-            segments.len(),
+    let trials = klipper_trials(a)?;
+    let sources = sources::read(&a.accel, axis, &trials, o.periods_per_rev, &NAMES)?;
+    let fit = sources.fit(&r, &o)?;
+    match &sources {
+        Sources::Klipper(logs) => outln!(
+            "{} stretches of {} Klipper logs of axis {letter} on {} at {run}; belt {} mm/rev",
+            sources.stretches(),
+            logs.len(),
             base.name,
             a.mm_per_rev
-        );
-        fit
-    } else {
-        if !a.klipper_trial.is_empty() {
-            bail!("--klipper-trial goes with Klipper logs (LOG.json.gz); Prusa captures carry their trial in M973");
+        ),
+        Sources::Prusa(c) => {
+            outln!("{} captures of axis {letter} on {} at {run}; belt {} mm/rev", c.len(), base.name, a.mm_per_rev)
         }
-        let captures = crate::accel::read_captures(&a.accel, axis)?;
-        let fit = identify_ripple(&captures, &r, &o)?;
-        outln!("{} captures of axis {letter} on {} at {run}; belt {} mm/rev", captures.len(), base.name, a.mm_per_rev);
-        fit
-    };
+    }
     outln!("{fit}");
-    let file = IdentifiedFile::new(&fit, &base.name, letter, run.peak_a());
-    let text = format!(
-        "# stepdamp identify --accel: the head and the motor's ripple at one run current, per direction\n\
-         # (docs/files.md#identified-ripple-toml). Not a motor profile.\n{}",
-        toml::to_string(&file)?
-    );
+    let text = RippleFile::new(&fit, &base.name, letter, run.peak_a()).to_toml_string()?;
     write_atomic(out, text.as_bytes())?;
     outln!("wrote {}", out.display());
     Ok(())
 }
 
-/// Whether the inputs are Klipper motion-analysis logs (a gzip header, `1f 8b`) rather than
-/// Prusa captures (text); refuses a mix. A file that cannot be opened counts as a capture,
-/// whose reader names it.
-fn klipper_logs(paths: &[PathBuf]) -> Result<bool> {
-    let gzip = |p: &PathBuf| {
-        let mut magic = [0u8; 2];
-        std::fs::File::open(p).and_then(|mut f| f.read_exact(&mut magic)).is_ok() && magic == [0x1f, 0x8b]
-    };
-    let kinds: Vec<bool> = paths.iter().map(gzip).collect();
-    if kinds.iter().any(|&k| k) && !kinds.iter().all(|&k| k) {
-        bail!("--accel: Klipper logs (gzip) and Prusa captures (text) mixed: give one kind");
-    }
-    Ok(kinds.first().copied().unwrap_or(false))
-}
+/// The CLI's names of the inputs, in the library's messages.
+const NAMES: Names = Names { paths: "--accel", axis: "--axis", motor: "--motor", trial: "--klipper-trial" };
 
-/// Every `--accel` Klipper log with its `--klipper-trial`, checked against the profile's
-/// electrical periods per revolution.
-fn read_klipper_logs(a: &FitArgs, axis: Axis, periods_per_rev: u32) -> Result<Vec<Log>> {
-    let mut trials: Vec<(PathBuf, TrialShift)> = Vec::new();
+/// Every `--klipper-trial LOG=H,U,PHI`, parsed; the library checks that each `LOG` is one of
+/// the `--accel` logs.
+fn klipper_trials(a: &FitArgs) -> Result<Vec<(PathBuf, TrialShift)>> {
+    let mut trials = Vec::new();
     for t in &a.klipper_trial {
         let form = || format!("--klipper-trial {}: expected LOG=H,U,PHI (H 1..=16, U and PHI in rad)", escape::line(t));
         let (log, v) = t.rsplit_once('=').ok_or_else(|| anyhow!(form()))?;
@@ -123,139 +93,9 @@ fn read_klipper_logs(a: &FitArgs, axis: Axis, periods_per_rev: u32) -> Result<Ve
         let (Ok(harmonic), Ok(amplitude_rad), Ok(phase_rad)) = (h.parse(), u.parse(), phi.parse()) else {
             bail!(form())
         };
-        let log = PathBuf::from(log);
-        if !a.accel.contains(&log) {
-            bail!(
-                "--klipper-trial {}: {} is not one of the --accel logs",
-                escape::line(t),
-                escape::line(&log.display().to_string())
-            );
-        }
-        trials.push((log, TrialShift { harmonic, amplitude_rad, phase_rad }));
+        trials.push((PathBuf::from(log), TrialShift { harmonic, amplitude_rad, phase_rad }));
     }
-    let mut logs = Vec::new();
-    for path in &a.accel {
-        let trial = trials.iter().find(|(p, _)| p == path).map(|x| x.1);
-        let log = stepdamp_accel::klipper::read_file(path, &KlipperOptions { axis, accelerometer: None, trial })?;
-        if log.periods_per_rev() != periods_per_rev {
-            bail!(
-                "{}: full_steps_per_rotation {} is {} electrical periods per revolution, the profile's pole pairs {periods_per_rev}: a wrong --motor or --axis",
-                log.source,
-                log.full_steps_per_rotation,
-                log.periods_per_rev()
-            );
-        }
-        logs.push(log);
-    }
-    Ok(logs)
-}
-
-/// The file `identify --accel` writes (docs/files.md#identified-ripple-toml).
-#[derive(Serialize)]
-struct IdentifiedFile {
-    motor: String,
-    axis: String,
-    current_peak_a: f64,
-    captures: usize,
-    blocks: usize,
-    explained_share: f64,
-    head: HeadSection,
-    ripple: Vec<RippleRow>,
-    not_identified: Vec<MissingRow>,
-}
-
-#[derive(Serialize)]
-struct HeadSection {
-    pulley_radius_m: f64,
-    total_inertia_kg_m2: f64,
-    total_inertia_95_kg_m2: [f64; 2],
-    carriage_mass_kg: f64,
-    carriage_mass_95_kg: [f64; 2],
-    belt_hz: f64,
-    belt_95_hz: [f64; 2],
-    belt_damping_ratio: f64,
-    belt_damping_ratio_95: [f64; 2],
-    belt_stiffness_n_per_m: f64,
-    rotor_damping_nm_s_per_rad: f64,
-    rotor_damping_95_nm_s_per_rad: [f64; 2],
-    shift_delay_s: f64,
-    shift_delay_95_s: [f64; 2],
-}
-
-#[derive(Serialize)]
-struct RippleRow {
-    direction: &'static str,
-    order: u32,
-    amplitude_nm: f64,
-    amplitude_95_nm: [f64; 2],
-    phase_rad: f64,
-    phase_95_rad: [f64; 2],
-    radius95_nm: f64,
-    blocks: usize,
-    speeds_rev_s: [f64; 2],
-    explained_share: f64,
-}
-
-#[derive(Serialize)]
-struct MissingRow {
-    direction: &'static str,
-    order: u32,
-    reason: String,
-}
-
-fn pair(i: Interval95) -> [f64; 2] {
-    [i.low, i.high]
-}
-
-impl IdentifiedFile {
-    fn new(f: &RippleFit, motor: &str, axis: char, current_peak_a: f64) -> Self {
-        let h = &f.head;
-        IdentifiedFile {
-            motor: motor.into(),
-            axis: axis.to_string(),
-            current_peak_a,
-            captures: f.captures,
-            blocks: f.blocks,
-            explained_share: f.explained_share,
-            head: HeadSection {
-                pulley_radius_m: f.axis.pulley_radius_m,
-                total_inertia_kg_m2: h.total_inertia_kg_m2.value,
-                total_inertia_95_kg_m2: pair(h.total_inertia_kg_m2),
-                carriage_mass_kg: h.carriage_mass_kg.value,
-                carriage_mass_95_kg: pair(h.carriage_mass_kg),
-                belt_hz: h.belt_hz.value,
-                belt_95_hz: pair(h.belt_hz),
-                belt_damping_ratio: h.belt_damping_ratio.value,
-                belt_damping_ratio_95: pair(h.belt_damping_ratio),
-                belt_stiffness_n_per_m: h.belt_stiffness_n_per_m,
-                rotor_damping_nm_s_per_rad: h.rotor_damping_nm_s_per_rad.value,
-                rotor_damping_95_nm_s_per_rad: pair(h.rotor_damping_nm_s_per_rad),
-                shift_delay_s: h.shift_delay_s.value,
-                shift_delay_95_s: pair(h.shift_delay_s),
-            },
-            ripple: f
-                .harmonics
-                .iter()
-                .map(|x| RippleRow {
-                    direction: x.direction.name(),
-                    order: x.order,
-                    amplitude_nm: x.amplitude_nm.value,
-                    amplitude_95_nm: pair(x.amplitude_nm),
-                    phase_rad: x.phase_rad.value,
-                    phase_95_rad: pair(x.phase_rad),
-                    radius95_nm: x.radius95_nm,
-                    blocks: x.blocks,
-                    speeds_rev_s: [x.speeds_rev_s.0, x.speeds_rev_s.1],
-                    explained_share: x.explained_share,
-                })
-                .collect(),
-            not_identified: f
-                .not_identified
-                .iter()
-                .map(|x| MissingRow { direction: x.direction.name(), order: x.order, reason: x.reason.clone() })
-                .collect(),
-        }
-    }
+    Ok(trials)
 }
 
 #[cfg(test)]
