@@ -141,6 +141,12 @@ pub fn read(
     if !trials.is_empty() {
         return Err(SourcesError::TrialWithPrusa { trial: names.trial });
     }
+    read_prusa(paths, axis, names).map(Sources::Prusa)
+}
+
+/// Every capture of the Prusa files `paths` (`M973`/`M974` output), refusing one that moved
+/// the other axis than `axis`, or none at all (also `accel refine`'s reader).
+pub fn read_prusa(paths: &[PathBuf], axis: Axis, names: &Names) -> Result<Vec<AccelCapture>, SourcesError> {
     let mut all = Vec::new();
     for path in paths {
         for c in crate::prusa::read_file(path)? {
@@ -156,7 +162,7 @@ pub fn read(
     if all.is_empty() {
         return Err(SourcesError::NoCaptures);
     }
-    Ok(Sources::Prusa(all))
+    Ok(all)
 }
 
 /// Every Klipper log with its trial, checked against the profile's periods per revolution.

@@ -53,21 +53,9 @@ fn table_in_use(arg: &str, axis: char) -> Result<PrusaCorrection> {
 
 /// Every capture of every log, refusing one of another axis.
 pub(crate) fn read_captures(logs: &[PathBuf], axis: Axis) -> Result<Vec<AccelCapture>> {
-    let mut all = Vec::new();
-    for path in logs {
-        for c in stepdamp_accel::prusa::read_file(path)? {
-            if let Some(g) = c.gcode
-                && g.axis() != axis
-            {
-                bail!("{}:{}: `{g}` moved the other axis than --axis", escape::line(&c.source), c.line);
-            }
-            all.push(c);
-        }
-    }
-    if all.is_empty() {
-        bail!("no captures in the logs given");
-    }
-    Ok(all)
+    const NAMES: stepdamp_accel::sources::Names =
+        stepdamp_accel::sources::Names { paths: "--log", axis: "--axis", motor: "--motor", trial: "--klipper-trial" };
+    Ok(stepdamp_accel::sources::read_prusa(logs, axis, &NAMES)?)
 }
 
 /// `--axis`: `X` or `Y` (either case), with its letter for the M971 lines.
