@@ -177,10 +177,11 @@ impl Reader<'_> {
         // The driver's section, as readlog.py:256–260 finds it: `tmc… <stepper>`.
         let driver =
             settings.keys().find(|k| k.starts_with("tmc") && k.split_once(' ').map(|x| x.1) == Some(self.stepper));
-        let phase_offset = match driver.and_then(|d| status.get(d.as_str())).and_then(|d| d.get("mcu_phase_offset")) {
-            None | Some(Value::Null) => None,
-            Some(_) => {
-                let d = driver.expect("found above");
+        let offset =
+            driver.and_then(|d| status.get(d.as_str()).and_then(|s| s.get("mcu_phase_offset")).map(|v| (d, v)));
+        let phase_offset = match offset {
+            None | Some((_, Value::Null)) => None,
+            Some((d, _)) => {
                 let dkey = format!("result.status.{d}");
                 Some(self.at(&dkey).int(&status[d.as_str()], "mcu_phase_offset", 0, 1 << 20)?)
             }
