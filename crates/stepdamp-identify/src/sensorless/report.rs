@@ -35,7 +35,7 @@ pub struct SensorlessReport {
     /// The flux shape's error the radius showed against the base's shape (`None`: fewer than
     /// two logs).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub flux_shape: Option<super::shape::ShapeFit>,
+    pub flux_shape: Option<Box<super::shape::ShapeFit>>,
     /// The `[motor.flux]` section written, when it differs from the base's.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub flux_written: Option<stepdamp_profile::flux::FluxSection>,
@@ -82,6 +82,12 @@ impl SensorlessReport {
             ));
         }
         notes.extend(f.shape_refused.clone());
+        if let Some(s) = f.shape.as_ref().filter(|s| s.sin2_stands_out()) {
+            notes.push(format!(
+                "the flux radius has a sin 2θe term of {:.4} ± {:.4}, which no flux gain makes: check the phase currents' and voltages' gains and timing, R and L (docs/sensorless.md#the-flux-shape-without-a-sensor)",
+                s.radius_sin2.value, s.radius_sin2.ci95
+            ));
+        }
         SensorlessReport {
             route: "sensorless",
             resistance_ohm: e.resistance_ohm,
@@ -90,7 +96,7 @@ impl SensorlessReport {
             base_km_nm_per_a: base_km,
             angles: e.angles.clone(),
             notes,
-            flux_shape: f.shape.clone(),
+            flux_shape: f.shape.clone().map(Box::new),
             flux_written,
             fit: FitReport::new(base, f.fit.clone()),
         }

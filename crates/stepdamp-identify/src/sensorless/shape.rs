@@ -88,6 +88,10 @@ pub struct ShapeFit {
     pub sum_ratio: Estimate,
     /// `arg(X₃ + X₅)`, rad.
     pub sum_phase_rad: Estimate,
+    /// The radius's `sin 2θe` coefficient per unit. A flux gain `g` makes only `cos 2θe`, so a
+    /// term that stands out here is not the magnet's: a phase's current or voltage channel
+    /// off in gain or timing, or `R` or `L` off (docs/sensorless.md#the-flux-shape-without-a-sensor).
+    pub radius_sin2: Estimate,
     /// Logs the intervals come from.
     pub logs: usize,
 }
@@ -106,6 +110,8 @@ impl ShapeFit {
         let scale = (t / crate::fit::thresholds::Z_95).powi(2) / nf;
         let g: Vec<f64> = per_log.iter().map(|h| -2.0 * h.order2.0).collect();
         let (gm, gv) = mean_var(&g);
+        let q: Vec<f64> = per_log.iter().map(|h| h.order2.1).collect();
+        let (qm, qv) = mean_var(&q);
         // The phasor of `cos(4θe + a)` is `e^{ja}`: `c·cos − s·sin` has `(c, −s)`.
         let re: Vec<f64> = per_log.iter().map(|h| h.order4.0).collect();
         let im: Vec<f64> = per_log.iter().map(|h| -h.order4.1).collect();
@@ -116,6 +122,7 @@ impl ShapeFit {
             phase_b_gain: Estimate { value: gm, ci95: t * (gv / nf).sqrt() },
             sum_ratio,
             sum_phase_rad,
+            radius_sin2: Estimate { value: qm, ci95: t * (qv / nf).sqrt() },
             logs: n,
         })
     }
@@ -172,8 +179,15 @@ impl ShapeFit {
                     std::f64::consts::PI
                 },
             },
+            radius_sin2: self.radius_sin2,
             logs: self.logs,
         }
+    }
+
+    /// Whether the radius's `sin 2θe` term stands out of the noise at 95 % (see
+    /// [`ShapeFit::radius_sin2`]).
+    pub fn sin2_stands_out(&self) -> bool {
+        stands_out(&self.radius_sin2, 1.0)
     }
 
     /// The measured terms [`ShapeFit::corrected`] leaves out (within the noise), by name.
@@ -271,6 +285,18 @@ mod tests {
         let c = fit.corrected(&FluxSection::default());
         let third = c.harmonics.iter().find(|h| h.order == 3).unwrap();
         assert!((third.ratio - THIRD_SHARE * fit.sum_ratio.value).abs() < 1e-12);
+    }
+
+    /// A `sin 2θe` term in the radius, which no flux gain makes, is flagged; `g` is not
+    /// taken from it.
+    #[test]
+    fn a_sin_2_theta_radius_term_is_flagged_and_not_taken_for_a_gain() {
+        let h = |s2: f64| RadiusHarmonics { samples: 1000, order2: (0.0, s2), order4: (0.0, 0.0) };
+        let fit = ShapeFit::of(&[h(0.0100), h(0.0102), h(0.0098), h(0.0101)]).unwrap();
+        assert!(fit.sin2_stands_out(), "{fit:?}");
+        assert_eq!(fit.phase_b_gain.value, 0.0);
+        let quiet = ShapeFit::of(&[h(1e-4), h(-1e-4), h(0.5e-4), h(-0.5e-4)]).unwrap();
+        assert!(!quiet.sin2_stands_out(), "{quiet:?}");
     }
 
     /// Nothing that stands out: the section comes back bit for bit.
