@@ -29,6 +29,7 @@ use crate::capture::{Axis, Commanded};
 pub use read::{read_file, read_log};
 pub use segment::Segment;
 use serde_json::Value;
+use stepdamp_out::input::printable;
 
 /// The most bytes decompressed from one log (1 GiB): an ADXL345 at 3200 Hz with a stepper
 /// queue logs about 0.3 MB/s, so an hour fits; a zip bomb stops here.
@@ -45,6 +46,9 @@ pub const MAX_SAMPLES: usize = 1 << 21;
 pub const MAX_STEPS: usize = 1 << 22;
 /// The most characters of a value shown in an error.
 pub const MAX_SHOWN_CHARS: usize = 60;
+
+/// The longest key or explanation a message quotes from the log (characters).
+pub const MAX_MESSAGE_CHARS: usize = 400;
 
 /// The kinematics the projection knows (`printer.kinematics`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -209,13 +213,17 @@ pub enum KlipperError {
     },
 }
 
-/// A JSON value as written, cut to [`MAX_SHOWN_CHARS`].
+/// A JSON value as written, cut to [`MAX_SHOWN_CHARS`], control characters escaped
+/// (`serde_json` escapes those below U+0020 but writes `DEL` and C1 controls raw).
 pub(crate) fn shown(v: &Value) -> String {
-    let s = v.to_string();
-    match s.char_indices().nth(MAX_SHOWN_CHARS) {
-        Some((i, _)) => format!("{}…", &s[..i]),
-        None => s,
-    }
+    printable(v.to_string().as_bytes(), MAX_SHOWN_CHARS)
+}
+
+/// Text built from the log's own keys and names (a driver's section, an accelerometer's
+/// name) as it goes into a message: control characters escaped, cut to
+/// [`MAX_MESSAGE_CHARS`].
+pub(crate) fn message_text(s: &str) -> String {
+    printable(s.as_bytes(), MAX_MESSAGE_CHARS)
 }
 
 #[cfg(test)]

@@ -53,7 +53,7 @@ impl At<'_> {
         KlipperError::Record {
             file: self.file.into(),
             record: self.record,
-            key: if field.is_empty() { self.key.into() } else { format!("{}.{field}", self.key) },
+            key: super::message_text(&if field.is_empty() { self.key.into() } else { format!("{}.{field}", self.key) }),
             value: super::shown(value),
             expected: expected.into(),
         }

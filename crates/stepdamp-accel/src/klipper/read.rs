@@ -82,7 +82,8 @@ pub fn read_log<R: Read>(input: R, file: &str, o: &KlipperOptions) -> Result<Log
 /// [`read_log`] of the file at `path`.
 pub fn read_file(path: &std::path::Path, o: &KlipperOptions) -> Result<Log, KlipperError> {
     let name = path.display().to_string();
-    let f = std::fs::File::open(path).map_err(|e| KlipperError::Io { file: name.clone(), message: e.to_string() })?;
+    let shown_name = stepdamp_out::input::printable(name.as_bytes(), crate::prusa::MAX_NAME_CHARS);
+    let f = std::fs::File::open(path).map_err(|e| KlipperError::Io { file: shown_name, message: e.to_string() })?;
     read_log(f, &name, o)
 }
 
@@ -92,7 +93,7 @@ impl Reader<'_> {
     }
 
     fn missing(&self, what: String) -> KlipperError {
-        KlipperError::Missing { file: self.file.into(), what }
+        KlipperError::Missing { file: self.file.into(), what: super::message_text(&what) }
     }
 
     /// Whether a record that is not JSON names what the route reads (then it is refused).

@@ -157,3 +157,27 @@ fn a_steady_move_is_one_segment_less_the_settle_time_at_each_end() {
     assert!((t0 - 10.2).abs() < 0.015 && (t1 - 11.3).abs() < 0.015, "{t0} {t1}");
     assert_eq!(s[0].direction, crate::ripple::Direction::Forward);
 }
+
+#[test]
+fn control_characters_from_the_log_are_escaped_in_every_message() {
+    let no_control = |e: &str| assert!(!e.chars().any(char::is_control), "{e:?}");
+    // DEL in a key (JSON writes it raw): found by the klipper_log fuzz target.
+    let e = read(&[config("cartesian").replace("\"settings\"", "\"setti\u{7f}gs\"")]).unwrap_err().to_string();
+    no_control(&e);
+    assert!(e.contains(r"setti\u{7f}gs"), "{e}");
+    // A C1 control in the driver's section name, quoted in the key of a refused offset.
+    let driver = config("cartesian").replace("tmc2209 stepper_x", "tmc\u{85}2209 stepper_x");
+    let moved = r#"{"q":"status","params":{"status":{"tmc\u0085 stepper_x":{"mcu_phase_offset":-1}}}}"#;
+    let bad = driver.replace("\"mcu_phase_offset\":5", "\"mcu_phase_offset\":-1");
+    for e in [
+        read(&[bad]).unwrap_err().to_string(),
+        read(&[driver, moved.into()]).map(|_| ()).map_or_else(|e| e.to_string(), |_| String::new()),
+    ] {
+        no_control(&e);
+    }
+    // Two accelerometers, one named with DEL: the message names both, escaped.
+    let other = accel(3).replace("accelerometer:adxl345", "accelerometer:a\u{7f}b");
+    let e = read(&[config("cartesian"), steps(), accel(3), other]).unwrap_err().to_string();
+    no_control(&e);
+    assert!(e.contains(r"a\u{7f}b"), "{e}");
+}
