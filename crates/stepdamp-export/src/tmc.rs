@@ -26,6 +26,9 @@ use stepdamp_core::{CorrectionTable, TABLE_TICKS};
 use stepdamp_sim::Profile;
 use stepdamp_sim::profile::DetentTerm;
 
+mod trial;
+pub use trial::{MAX_TRIAL_SHIFT_RAD, MIN_TRIAL_SHIFT_RAD, TrialTable, trial_block};
+
 /// The Klipper driver sections that accept `driver_MSLUT0` … `driver_START_SIN90`: the
 /// modules that call `TMCWaveTableHelper` (Klipper `klippy/extras/tmc.py`, at the commit
 /// named in `docs/exporters.md`). Klipper has no `tmc2160` or `tmc5130` section; the
@@ -244,6 +247,25 @@ pub struct TmcExport {
     pub power_share: f64,
 }
 
+/// The quarter wave `Q[0..=256]` in counts of [`FULL_SCALE`] (rounded) of
+/// `sin φ + Σ_j (ε_j/2)(sin(4j−1)φ + sin(4j+1)φ)` for `eps` = `(j, ε_j)`: coil currents
+/// `(cos, sin)(θe + Σ_j ε_j sin 4jθe)` to first order in ε, i.e. the current vector turned by
+/// `Σ_j ε_j sin(4j·θe)` rad (`docs/exporters.md#trinamic-microstep-table-through-klipper`).
+pub fn quarter_wave(eps: &[(u16, f64)]) -> [i32; 257] {
+    let w = |phi: f64| {
+        phi.sin()
+            + eps
+                .iter()
+                .map(|&(j, e)| e / 2.0 * (((4 * j - 1) as f64 * phi).sin() + ((4 * j + 1) as f64 * phi).sin()))
+                .sum::<f64>()
+    };
+    let mut q = [0i32; 257];
+    for (x, v) in q.iter_mut().enumerate() {
+        *v = (f64::from(FULL_SCALE) * w(TAU * x as f64 / 1024.0)).round() as i32;
+    }
+    q
+}
+
 /// Builds the table for a correction: the wave `I·[sin φ + Σ_j (ε_j/2)(sin(4j−1)φ + sin(4j+1)φ)]`
 /// with `ε_j` the sine part of order `4j` divided by `I`, in counts of [`FULL_SCALE`].
 /// Refuses when no order of the model is a multiple of 4 with a non-zero sine part.
@@ -263,18 +285,7 @@ pub fn export(c: &Correction) -> Result<TmcExport, ExportError> {
             orders.join(", ")
         )));
     }
-    let w = |phi: f64| {
-        phi.sin()
-            + eps
-                .iter()
-                .map(|&(j, e)| e / 2.0 * (((4 * j - 1) as f64 * phi).sin() + ((4 * j + 1) as f64 * phi).sin()))
-                .sum::<f64>()
-    };
-    let mut q = [0i32; 257];
-    for (x, v) in q.iter_mut().enumerate() {
-        *v = (f64::from(FULL_SCALE) * w(TAU * x as f64 / 1024.0)).round() as i32;
-    }
-    let registers = encode(&q)?;
+    let registers = encode(&quarter_wave(&eps))?;
     let coverage = coverage(c, &registers.decode());
     let wanted: f64 = coverage.iter().map(|o| o.wanted_a.powi(2)).sum();
     let left: f64 = coverage.iter().map(|o| o.residual_a.powi(2)).sum();
@@ -284,21 +295,11 @@ pub fn export(c: &Correction) -> Result<TmcExport, ExportError> {
 /// The q current of a quarter wave as the drive makes it (reference held over each tick,
 /// seen from the tick's centre angle), projected on each order of the correction.
 pub fn coverage(c: &Correction, q: &[i32; 257]) -> Vec<OrderCoverage> {
-    let scale = c.holding_current_a / f64::from(FULL_SCALE);
-    let iq: Vec<(f64, f64)> = (0..TABLE_TICKS)
-        .map(|m| {
-            let th = TAU * (m as f64 + 0.5) / 1024.0;
-            let (a, b) = (f64::from(wave(q, m + 256)) * scale, f64::from(wave(q, m)) * scale);
-            (th, -a * th.sin() + b * th.cos())
-        })
-        .collect();
     c.terms
         .iter()
         .map(|&(k, amp, ph)| {
-            let kf = f64::from(k);
-            let n = iq.len() as f64;
-            let s: f64 = iq.iter().map(|&(t, v)| v * (kf * t).sin()).sum::<f64>() * 2.0 / n;
-            let co: f64 = iq.iter().map(|&(t, v)| v * (kf * t).cos()).sum::<f64>() * 2.0 / n;
+            let (s, co) = order_parts(q, k);
+            let (s, co) = (s * c.holding_current_a, co * c.holding_current_a);
             // Wanted: amp·sin(kθ + φ) = amp cos φ · sin kθ + amp sin φ · cos kθ.
             let (ws, wc) = (amp * ph.cos(), amp * ph.sin());
             OrderCoverage {
@@ -310,6 +311,25 @@ pub fn coverage(c: &Correction, q: &[i32; 257]) -> Vec<OrderCoverage> {
             }
         })
         .collect()
+}
+
+/// The sine and cosine parts of order `k` of the q current the quarter wave `q` makes, per
+/// unit of run current: the reference held over each of the 1024 ticks, seen from the tick's
+/// centre angle, winding a = `CUR_B`, b = `CUR_A`. For a table of [`quarter_wave`] the sine
+/// part of order `4j` is `ε_j` (to the table's rounding).
+pub fn order_parts(q: &[i32; 257], k: u16) -> (f64, f64) {
+    let scale = 1.0 / f64::from(FULL_SCALE);
+    let kf = f64::from(k);
+    let (mut s, mut co) = (0.0, 0.0);
+    for m in 0..TABLE_TICKS {
+        let th = TAU * (m as f64 + 0.5) / 1024.0;
+        let (a, b) = (f64::from(wave(q, m + 256)) * scale, f64::from(wave(q, m)) * scale);
+        let iq = -a * th.sin() + b * th.cos();
+        s += iq * (kf * th).sin();
+        co += iq * (kf * th).cos();
+    }
+    let n = TABLE_TICKS as f64;
+    (s * 2.0 / n, co * 2.0 / n)
 }
 
 /// The replay table the core runs in `table` mode: winding a = `CUR_B = w(m+256)`, winding
