@@ -27,7 +27,7 @@ use std::f64::consts::TAU;
 use stepdamp_accel::capture::{MARKER_ACCEL_REV_S2, MARKER_SPEED_REV_S, MAX_HARMONIC, SETTLE_S};
 use stepdamp_accel::{AccelCapture, Annotations, Axis, CaptureError, Gcode, Reconstruction, TrialSweep};
 use stepdamp_export::prusa::PrusaCorrection;
-use stepdamp_sim::{ClosedLoop, Compensation, Mode, Profile, SimOptions};
+use stepdamp_sim::{ClosedLoop, Compensation, CorrectionTable, Mode, Profile, SimOptions};
 
 /// Standard gravity (m/s²), the firmware's `2·9.80665/max` scale (`accelerometer_utils.cpp`).
 pub const STANDARD_GRAVITY: f64 = 9.80665;
@@ -112,6 +112,11 @@ pub struct SimulatedPrinter {
     pub run_current_a: f64,
     /// The phase-stepping table in use, both directions (`Firmware::V6_3_1` for ≥ 6.3.1).
     pub correction: PrusaCorrection,
+    /// A Trinamic driver's wave table in place of phase stepping (the replay table of
+    /// `stepdamp_export::tmc::table`, the same both ways): the Klipper side
+    /// ([`Self::motan_log`]). With it, [`Self::correction`] is not used and an `M973` must carry
+    /// no trial (`C0 D0`): the trial is the table's.
+    pub driver_table: Option<CorrectionTable>,
     /// The accelerometer.
     pub accel: AccelModel,
     /// Seed of the capture's rate error and noise: the same seed repeats a capture exactly;
@@ -156,6 +161,7 @@ impl SimulatedPrinter {
                 backward: zero,
                 firmware: stepdamp_export::prusa::Firmware::V6_3_1,
             },
+            driver_table: None,
             accel: AccelModel::default(),
             seed: 1,
         }
@@ -219,6 +225,22 @@ impl SimulatedPrinter {
         Ok(c)
     }
 
+    /// The table the drive replays for `g`: [`Self::driver_table`] if set (refusing an `M973`
+    /// trial, which only phase stepping applies), else [`Self::correction_for`]'s.
+    fn table_for(&self, g: &Gcode) -> Result<CorrectionTable, PrinterError> {
+        let Some(t) = self.driver_table else { return Ok(self.correction_for(g)?.table()) };
+        if let Gcode::ParamSweep { trial, .. } = *g {
+            if trial.constant().is_none_or(|(mag, _)| mag != 0.0) {
+                return Err(PrinterError::Parameter {
+                    what: "M973 C/D with a driver table",
+                    value: format!("{g}"),
+                    allowed: "C0 D0: the trial is the driver's table".into(),
+                });
+            }
+        }
+        Ok(t)
+    }
+
     /// [`Self::correction`] with `M973`'s constant trial added to item `H` of the table in use.
     fn with_trial(&self, g: &Gcode) -> Result<PrusaCorrection, PrinterError> {
         let mut c = self.correction;
@@ -270,7 +292,7 @@ impl SimulatedPrinter {
         self.check_accel()?;
         let times = g.planned_times()?;
         let motor = self.motor()?;
-        let table = self.correction_for(g)?.table();
+        let table = self.table_for(g)?;
         let cfg = motor
             .controller_config(Mode::OpenLoop, Compensation::Table, Some(&table))
             .map_err(|e| PrinterError::Sim(e.to_string()))?;

@@ -6,6 +6,7 @@ use std::f64::consts::TAU;
 use stepdamp_accel::klipper::{Kinematics, KlipperOptions, Log, TrialShift, read_log};
 use stepdamp_accel::ripple::{Direction, RippleOptions, identify_ripple};
 use stepdamp_accel::{Axis, Complex, Gcode, Reconstruction, TrialSweep};
+use stepdamp_export::tmc::{self, TmcRegisters, TrialTable};
 use stepdamp_printer::{KlipperSetup, MotanLog, SimulatedPrinter};
 use stepdamp_sim::Profile;
 
@@ -57,17 +58,16 @@ fn at_2_rev_s(revs: f64, mag: f64) -> Gcode {
 }
 
 /// The Prusa route's recipe (tests/identify_ripple.rs) as two Klipper logs: the sweeps from 2
-/// to 4 rev/s and back over 8 revolutions and a steady 2 rev/s per direction with the
-/// driver's own table, then the steady moves again with the table carrying the trial
-/// `0.12·sin(4·θe)` (Prusa's `H4 C0.03`), which [`TrialShift`] tells the reader.
-fn recipe(p: &SimulatedPrinter) -> Vec<Log> {
+/// to 4 rev/s and back over 8 revolutions and a steady 2 rev/s per direction by `plain`, then
+/// the steady moves again by `trial` with `mag` as `M973`'s trial (0 when `trial`'s driver
+/// table carries it), which `shift` tells the reader.
+fn recipe(plain: &SimulatedPrinter, trial: &SimulatedPrinter, mag: f64, shift: TrialShift) -> Vec<Log> {
     let k = KlipperSetup::default();
-    let plain = [sweep(2.0, 4.0, 8.0), sweep(2.0, 4.0, -8.0), at_2_rev_s(6.0, 0.0), at_2_rev_s(-6.0, 0.0)];
-    let trial = [at_2_rev_s(6.0, 0.03), at_2_rev_s(-6.0, 0.03)];
-    let shift = TrialShift { harmonic: 4, amplitude_rad: 4.0 * 0.03, phase_rad: 0.0 };
-    [(&plain[..], None, 1), (&trial[..], Some(shift), 2)]
+    let plain_moves = [sweep(2.0, 4.0, 8.0), sweep(2.0, 4.0, -8.0), at_2_rev_s(6.0, 0.0), at_2_rev_s(-6.0, 0.0)];
+    let trial_moves = [at_2_rev_s(6.0, mag), at_2_rev_s(-6.0, mag)];
+    [(plain, &plain_moves[..], None, 1), (trial, &trial_moves[..], Some(shift), 2)]
         .into_iter()
-        .map(|(moves, trial, seed)| {
+        .map(|(p, moves, trial, seed)| {
             let log = SimulatedPrinter { seed, ..p.clone() }.motan_log(moves, &k).unwrap();
             let o = KlipperOptions { axis: Axis::X, accelerometer: None, trial };
             read_log(log.json_gz.as_slice(), "sim.json.gz", &o).unwrap()
@@ -75,10 +75,10 @@ fn recipe(p: &SimulatedPrinter) -> Vec<Log> {
         .collect()
 }
 
-#[test]
-fn the_order_4_ripple_identified_from_simulated_klipper_logs_is_the_motors() {
-    let p = SimulatedPrinter::new(real_motor(), 0.9);
-    let logs = recipe(&p);
+/// Identifies the ripple from `logs` of `p`'s motor; order 4's worst error over both
+/// directions against the truth, in units of the Prusa route's tolerance
+/// (tests/identify_ripple.rs): max(10 %, 1 mN·m).
+fn order_4_error(p: &SimulatedPrinter, logs: &[Log]) -> f64 {
     let segments: Vec<_> = logs.iter().flat_map(Log::segments).collect();
     assert_eq!(segments.len(), 6, "one stretch per move");
     let m = &p.profile.motor;
@@ -98,6 +98,7 @@ fn the_order_4_ripple_identified_from_simulated_klipper_logs_is_the_motors() {
     let t = truth.harmonics.iter().find(|x| x.order == 4).unwrap();
     let belt = p.head.belt_hz();
     assert!((fit.head.belt_hz.value / belt - 1.0).abs() < 0.1, "{} vs {belt}", fit.head.belt_hz.value);
+    let mut worst: f64 = 0.0;
     for dir in [Direction::Forward, Direction::Backward] {
         let x = fit.harmonics.iter().find(|x| x.order == 4 && x.direction == dir).unwrap();
         let err = (Complex::from_polar(-x.amplitude_nm.value, x.phase_rad.value)
@@ -112,7 +113,48 @@ fn the_order_4_ripple_identified_from_simulated_klipper_logs_is_the_motors() {
             x.phase_rad.value,
             1e3 * err
         );
-        // The Prusa route's tolerance for order 4 (tests/identify_ripple.rs): max(10 %, 1 mN·m).
-        assert!(err <= (0.1 * t.amplitude_nm).max(1e-3), "{}: {err}", dir.name());
+        worst = worst.max(err / (0.1 * t.amplitude_nm).max(1e-3));
     }
+    worst
+}
+
+#[test]
+fn the_order_4_ripple_identified_from_simulated_klipper_logs_is_the_motors() {
+    // The trial `0.12·sin(4·θe)` as Prusa's `H4 C0.03` turns the current.
+    let p = SimulatedPrinter::new(real_motor(), 0.9);
+    let shift = TrialShift { harmonic: 4, amplitude_rad: 4.0 * 0.03, phase_rad: 0.0 };
+    let e = order_4_error(&p, &recipe(&p, &p, 0.03, shift));
+    assert!(e <= 1.0, "{e} of the tolerance");
+}
+
+#[test]
+fn a_trial_wave_table_from_stepdamp_gives_the_motors_order_4_ripple() {
+    // A Trinamic driver: Klipper's default table, then the trial table `TrialTable` writes,
+    // told to the reader as its block says (`klipper_trial_arg`).
+    let t = TrialTable::new(4, 0.12).unwrap();
+    let arg = t.klipper_trial_arg();
+    let u: f64 = arg.split(',').nth(1).unwrap().parse().unwrap();
+    assert_eq!(arg, format!("4,{u:.4},0"));
+    let with = |r: &TmcRegisters| SimulatedPrinter {
+        driver_table: Some(tmc::table(r)),
+        ..SimulatedPrinter::new(real_motor(), 0.9)
+    };
+    let (plain, trial) = (with(&TmcRegisters::KLIPPER_DEFAULT), with(&t.registers));
+    let shift = TrialShift { harmonic: 4, amplitude_rad: u, phase_rad: 0.0 };
+    let e = order_4_error(&plain, &recipe(&plain, &trial, 0.0, shift));
+    assert!(e <= 1.0, "{e} of the tolerance");
+    // The same logs told the opposite sign are far off: the test can tell a wrong sign.
+    let wrong = TrialShift { phase_rad: std::f64::consts::PI, ..shift };
+    let e = order_4_error(&plain, &recipe(&plain, &trial, 0.0, wrong));
+    assert!(e > 10.0, "a trial of the wrong sign is only {e} of the tolerance off");
+}
+
+#[test]
+fn a_driver_table_refuses_an_m973_trial() {
+    let p = SimulatedPrinter {
+        driver_table: Some(tmc::table(&TmcRegisters::KLIPPER_DEFAULT)),
+        ..SimulatedPrinter::new(real_motor(), 0.9)
+    };
+    let e = p.simulate(&at_2_rev_s(6.0, 0.03)).unwrap_err().to_string();
+    assert!(e.contains("C0 D0: the trial is the driver's table"), "{e}");
 }
