@@ -400,3 +400,31 @@ fn sweep_replays_an_exported_table_next_to_the_other_laws() {
     assert_eq!(o.status.code(), Some(1));
     assert!(text(&o).contains("--table"), "{}", text(&o));
 }
+
+#[test]
+fn accel_klipper_trial_writes_a_block_that_reads_back_and_names_its_trial_argument() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("trial.cfg");
+    let o = stepdamp(&["accel", "klipper-trial", "--axis", "tmc2240 stepper_y", "--out", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    let block = std::fs::read_to_string(&out).unwrap();
+    let arg = text(&o).split("--klipper-trial TRIAL_LOG=").nth(1).unwrap().trim().to_string();
+    assert!(arg.starts_with("4,0.12") && arg.ends_with(",0"), "{arg}");
+    assert!(block.contains(&format!("TRIAL_LOG={arg}\n")) && block.contains("[tmc2240 stepper_y]\n"), "{block}");
+    // `sweep --table` reads the block as it reads an exported correction.
+    let t = stepdamp_export::tmc::parse_klipper(&block, "trial.cfg").unwrap();
+    assert_eq!(t, stepdamp_export::tmc::TrialTable::new(4, 0.12).unwrap().registers);
+    // A driver without a table, an order or a shift the table cannot turn: exit 1, one line, no file.
+    for bad in [
+        &["--axis", "tmc2209 stepper_x"][..],
+        &["--axis", "tmc5160 stepper_x", "--harmonic", "2"],
+        &["--axis", "tmc5160 stepper_x", "--shift-rad", "-0.4"],
+        &["--axis", "tmc5160 stepper_x", "--harmonic", "8", "--shift-rad", "0.1"],
+    ] {
+        let none = dir.path().join("none.cfg");
+        let o = stepdamp(&[&["accel", "klipper-trial", "--out", none.to_str().unwrap()][..], bad].concat());
+        assert_eq!(o.status.code(), Some(1), "{bad:?}: {}", text(&o));
+        assert_eq!(text(&o).trim().lines().count(), 1, "{bad:?}: {}", text(&o));
+        assert!(!none.exists(), "{bad:?}");
+    }
+}

@@ -1,6 +1,7 @@
-//! `stepdamp accel`: the accelerometer route on a Prusa printer (docs/accelerometer.md):
-//! simulate a printer's capture, refine the table from recorded ones.
+//! `stepdamp accel`: the accelerometer route on a printer (docs/accelerometer.md): simulate a
+//! Prusa printer's capture, refine its table from recorded ones, write a Klipper trial table.
 
+mod klipper_trial;
 mod refine;
 mod simulate;
 
@@ -20,6 +21,9 @@ pub enum AccelCommand {
     /// One influence step from recorded M973 captures (`identify plan --accel` lists them):
     /// the Prusa table (M971 lines, firmware >= 6.3.1) that cancels what they measured.
     Refine(refine::RefineArgs),
+    /// A Klipper block with a Trinamic trial wave table (tmc2130/2240/5160): the current
+    /// vector turned by a known U·sin(H·θe), for the trial log of `identify --accel`.
+    KlipperTrial(klipper_trial::KlipperTrialArgs),
 }
 
 /// Runs `stepdamp accel`.
@@ -27,6 +31,7 @@ pub fn run(c: AccelCommand, _g: &Global) -> Result<()> {
     match c {
         AccelCommand::Simulate(a) => simulate::run_simulate(a),
         AccelCommand::Refine(a) => refine::run_refine(a),
+        AccelCommand::KlipperTrial(a) => klipper_trial::run_klipper_trial(a),
     }
 }
 
