@@ -24,6 +24,7 @@ mod frame;
 pub mod motion;
 mod read;
 pub mod segment;
+pub mod table_step;
 
 use crate::capture::{Axis, Commanded};
 pub use read::{read_file, read_log};

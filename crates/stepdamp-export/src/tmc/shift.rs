@@ -1,7 +1,8 @@
-//! A **trial** wave table for the accelerometer route on a Klipper printer: the driver's
-//! table turning the current vector by a known `U·sin(H·θe)` rad, so that a log recorded with
-//! it gives the route its scale (`stepdamp identify --accel … --klipper-trial LOG=H,U,0`,
-//! `docs/accelerometer.md#a-trial-table-for-klipper`).
+//! Wave tables that turn the current vector by `ε·sin(H·θe)` rad, for the accelerometer route
+//! on a Klipper printer: a **trial** of known shift, so that a log recorded with it gives the
+//! route its scale (`stepdamp identify --accel … --klipper-trial LOG=H,U,0`,
+//! `docs/accelerometer.md#a-trial-table-for-klipper`), and the **correction** an influence
+//! step asks for (`docs/accelerometer.md#refining-a-trinamic-table`).
 //!
 //! The table is [`super::quarter_wave`] with `ε = U` at order `H = 4j`: only orders 4, 8, 12
 //! and 16 with phase 0 (or π: a negative `U`) can be expressed (module doc of [`super`]).
@@ -17,21 +18,22 @@ use crate::ExportError;
 /// The smallest trial shift written (rad): 4 counts of [`FULL_SCALE`] on the third and fifth
 /// harmonics of the wave together, so that the table's rounding (half a count per entry)
 /// stays a few per cent of the trial; the achieved shift is computed from the integer table
-/// anyway ([`TrialTable::achieved_rad`]).
+/// anyway ([`ShiftTable::achieved_rad`]).
 pub const MIN_TRIAL_SHIFT_RAD: f64 = 4.0 / FULL_SCALE as f64;
 
 /// The largest trial shift asked (rad): 0.25 rad, about twice the Prusa route's largest
 /// planned trial (`M973 … C0.03`, 0.12 rad of shift). The registers hold less: at order 4
 /// about 0.18 rad, at 8 0.04, at 12 and 16 0.02 (their four step-width segments); beyond,
-/// [`TrialTable::new`] refuses the encoding.
+/// [`ShiftTable::new`] refuses the encoding.
 pub const MAX_TRIAL_SHIFT_RAD: f64 = 0.25;
 
-/// A trial table and the shift it makes.
+/// A table turning the current vector by `ε·sin(H·θe)`, and the shift it makes: a trial
+/// ([`ShiftTable::trial`]) or a correction ([`ShiftTable::new`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct TrialTable {
+pub struct ShiftTable {
     /// The order `H` (4, 8, 12 or 16).
     pub harmonic: u16,
-    /// The shift asked for, `U` (rad; the sign is the phase: negative is `PHI = π`).
+    /// The shift asked for, `ε` (rad; the sign is the phase: negative is `PHI = π`).
     pub shift_rad: f64,
     /// The shift the integer table makes: the sine part of order `H` of its q current per
     /// unit of run current (rad; [`super::order_parts`]), what `--klipper-trial` should say.
@@ -43,24 +45,28 @@ pub struct TrialTable {
     pub registers: TmcRegisters,
 }
 
-impl TrialTable {
-    /// The table turning the current vector by `shift_rad·sin(harmonic·θe)`. Refuses an order
-    /// the table cannot carry, a shift outside [`MIN_TRIAL_SHIFT_RAD`]..=[`MAX_TRIAL_SHIFT_RAD`]
-    /// in magnitude (or not finite), and a wave the registers cannot encode.
+impl ShiftTable {
+    /// The table turning the current vector by `shift_rad·sin(harmonic·θe)` (a correction:
+    /// any magnitude up to [`MAX_TRIAL_SHIFT_RAD`], 0 included). Refuses an order the table
+    /// cannot carry, a shift not finite or beyond that, and a wave the registers cannot
+    /// encode.
     pub fn new(harmonic: u16, shift_rad: f64) -> Result<Self, ExportError> {
         if !(harmonic % 4 == 0 && (4..=16).contains(&harmonic)) {
             return Err(ExportError::Invalid(format!(
-                "trial order {harmonic}: a Trinamic table turns the current only at orders 4, 8, 12, 16 (sine phase)"
+                "shift order {harmonic}: a Trinamic table turns the current only at orders 4, 8, 12, 16 (sine phase)"
             )));
         }
-        if !(shift_rad.is_finite() && (MIN_TRIAL_SHIFT_RAD..=MAX_TRIAL_SHIFT_RAD).contains(&shift_rad.abs())) {
+        if !(shift_rad.is_finite() && shift_rad.abs() <= MAX_TRIAL_SHIFT_RAD) {
             return Err(ExportError::Invalid(format!(
-                "trial shift {shift_rad} rad: its magnitude must be in {MIN_TRIAL_SHIFT_RAD:.4}..={MAX_TRIAL_SHIFT_RAD} rad"
+                "shift {shift_rad} rad: its magnitude must be at most {MAX_TRIAL_SHIFT_RAD} rad"
             )));
         }
         let q = quarter_wave(&[(harmonic / 4, shift_rad)]);
-        let registers = encode(&q)
-            .map_err(|e| ExportError::Invalid(format!("trial {harmonic},{shift_rad}: the table cannot hold it ({e}): a smaller shift (order 4 holds about 0.18 rad, 8 0.04, 12 and 16 0.02)")))?;
+        let registers = encode(&q).map_err(|e| {
+            ExportError::Invalid(format!(
+                "shift {harmonic},{shift_rad}: the table cannot hold it ({e}): a smaller shift (order 4 holds about 0.18 rad, 8 0.04, 12 and 16 0.02)"
+            ))
+        })?;
         let q = registers.decode();
         let (achieved_rad, cos_h) = order_parts(&q, harmonic);
         let stray_rad = (1..=16u16)
@@ -70,7 +76,18 @@ impl TrialTable {
                 s.hypot(c)
             })
             .fold(cos_h.abs(), f64::max);
-        Ok(TrialTable { harmonic, shift_rad, achieved_rad, stray_rad, registers })
+        Ok(ShiftTable { harmonic, shift_rad, achieved_rad, stray_rad, registers })
+    }
+
+    /// A **trial** table: [`Self::new`] with the shift's magnitude at least
+    /// [`MIN_TRIAL_SHIFT_RAD`], so that its change stands out of the table's rounding.
+    pub fn trial(harmonic: u16, shift_rad: f64) -> Result<Self, ExportError> {
+        if !(shift_rad.is_finite() && (MIN_TRIAL_SHIFT_RAD..=MAX_TRIAL_SHIFT_RAD).contains(&shift_rad.abs())) {
+            return Err(ExportError::Invalid(format!(
+                "trial shift {shift_rad} rad: its magnitude must be in {MIN_TRIAL_SHIFT_RAD:.4}..={MAX_TRIAL_SHIFT_RAD} rad"
+            )));
+        }
+        Self::new(harmonic, shift_rad).map_err(|e| ExportError::Invalid(format!("trial: {e}")))
     }
 
     /// What `stepdamp identify --accel --klipper-trial` takes for a log recorded with this
@@ -87,7 +104,7 @@ impl TrialTable {
 /// load and unload it (an `[include]`: Klipper's parser is `strict=False`, configfile.py:172,
 /// so a repeated section merges, later options winning), and what to tell stepdamp; then
 /// the section and its `driver_…` lines.
-pub fn trial_block(t: &TrialTable, axis: &str) -> Result<String, ExportError> {
+pub fn trial_block(t: &ShiftTable, axis: &str) -> Result<String, ExportError> {
     let section = klipper_section(axis)?;
     let mut s = format!(
         "# Trial wave table from stepdamp: turns the current vector by {:.4}*sin({}*theta_e) rad\n\
@@ -102,6 +119,21 @@ pub fn trial_block(t: &TrialTable, axis: &str) -> Result<String, ExportError> {
     Ok(s + &t.registers.klipper_lines())
 }
 
+/// The Klipper config block of a correction table (`accel klipper-refine`): what it does and
+/// how to load it (as [`trial_block`]), then the section and its `driver_…` lines. ASCII only.
+pub fn shift_block(t: &ShiftTable, axis: &str) -> Result<String, ExportError> {
+    let section = klipper_section(axis)?;
+    let mut s = format!(
+        "# Wave table from stepdamp: turns the current vector by {:.4}*sin({}*theta_e) rad\n\
+         # (asked {:.4}; other orders within {:.4} rad, the table's rounding).\n",
+        t.achieved_rad, t.harmonic, t.shift_rad, t.stray_rad
+    );
+    s += "# Add [include <this file>] to printer.cfg after the driver's section (Klipper merges\n\
+          # the options into it, overriding any driver_MSLUT*/W*/X*/START_SIN* there), FIRMWARE_RESTART.\n";
+    s += &format!("[{section}]\n");
+    Ok(s + &t.registers.klipper_lines())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -111,7 +143,7 @@ mod tests {
     #[test]
     fn a_trial_table_turns_the_current_vector_by_the_shift_asked() {
         for (h, u) in [(4, 0.12), (4, -0.05), (4, 0.18), (8, 0.04), (12, 0.02), (16, -0.02)] {
-            let t = TrialTable::new(h, u).unwrap();
+            let t = ShiftTable::trial(h, u).unwrap();
             assert!((t.achieved_rad / u - 1.0).abs() < 0.03, "{h},{u}: {t:?}");
             assert!(t.stray_rad < 0.004, "{h},{u}: {t:?}");
             // The coil currents the core replays: the vector's angle minus θe is the shift.
@@ -130,12 +162,12 @@ mod tests {
 
     #[test]
     fn the_block_reads_back_to_the_same_registers_and_names_the_trial_argument() {
-        let t = TrialTable::new(4, 0.12).unwrap();
+        let t = ShiftTable::trial(4, 0.12).unwrap();
         let b = trial_block(&t, "tmc5160 stepper_x").unwrap();
         assert_eq!(parse_klipper(&b, "trial.cfg").unwrap(), t.registers);
         assert!(b.contains(&format!("--klipper-trial TRIAL_LOG={}", t.klipper_trial_arg())), "{b}");
         assert!(b.contains("[tmc5160 stepper_x]\n") && b.is_ascii(), "{b}");
-        let neg = TrialTable::new(4, -0.05).unwrap();
+        let neg = ShiftTable::trial(4, -0.05).unwrap();
         assert_eq!(neg.klipper_trial_arg(), format!("4,{:.4},3.14159265", -neg.achieved_rad));
     }
 
@@ -153,10 +185,10 @@ mod tests {
             (4, f64::NAN),
             (4, f64::INFINITY),
         ] {
-            let e = TrialTable::new(h, u).unwrap_err().to_string();
+            let e = ShiftTable::trial(h, u).unwrap_err().to_string();
             assert!(e.contains("trial") && !e.contains('\n'), "{h},{u}: {e}");
         }
-        let e = trial_block(&TrialTable::new(4, 0.1).unwrap(), "tmc2209 stepper_x").unwrap_err().to_string();
+        let e = trial_block(&ShiftTable::trial(4, 0.1).unwrap(), "tmc2209 stepper_x").unwrap_err().to_string();
         assert!(e.contains("no wave table"), "{e}");
     }
 }
