@@ -6,7 +6,7 @@ use std::f64::consts::TAU;
 use stepdamp_accel::klipper::{Kinematics, KlipperOptions, Log, TrialShift, read_log};
 use stepdamp_accel::ripple::{Direction, RippleOptions, identify_ripple};
 use stepdamp_accel::{Axis, Complex, Gcode, Reconstruction, TrialSweep};
-use stepdamp_export::tmc::{self, TmcRegisters, TrialTable};
+use stepdamp_export::tmc::{self, ShiftTable, TmcRegisters};
 use stepdamp_printer::{KlipperSetup, MotanLog, SimulatedPrinter};
 use stepdamp_sim::Profile;
 
@@ -129,9 +129,9 @@ fn the_order_4_ripple_identified_from_simulated_klipper_logs_is_the_motors() {
 
 #[test]
 fn a_trial_wave_table_from_stepdamp_gives_the_motors_order_4_ripple() {
-    // A Trinamic driver: Klipper's default table, then the trial table `TrialTable` writes,
+    // A Trinamic driver: Klipper's default table, then the trial table `ShiftTable` writes,
     // told to the reader as its block says (`klipper_trial_arg`).
-    let t = TrialTable::new(4, 0.12).unwrap();
+    let t = ShiftTable::trial(4, 0.12).unwrap();
     let arg = t.klipper_trial_arg();
     let u: f64 = arg.split(',').nth(1).unwrap().parse().unwrap();
     assert_eq!(arg, format!("4,{u:.4},0"));
