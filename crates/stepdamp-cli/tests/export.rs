@@ -413,7 +413,7 @@ fn accel_klipper_trial_writes_a_block_that_reads_back_and_names_its_trial_argume
     assert!(block.contains(&format!("TRIAL_LOG={arg}\n")) && block.contains("[tmc2240 stepper_y]\n"), "{block}");
     // `sweep --table` reads the block as it reads an exported correction.
     let t = stepdamp_export::tmc::parse_klipper(&block, "trial.cfg").unwrap();
-    assert_eq!(t, stepdamp_export::tmc::TrialTable::new(4, 0.12).unwrap().registers);
+    assert_eq!(t, stepdamp_export::tmc::ShiftTable::trial(4, 0.12).unwrap().registers);
     // A driver without a table, an order or a shift the table cannot turn: exit 1, one line, no file.
     for bad in [
         &["--axis", "tmc2209 stepper_x"][..],

@@ -5,7 +5,7 @@ use crate::common::write_atomic;
 use anyhow::Result;
 use std::path::PathBuf;
 use stepdamp_export::escape;
-use stepdamp_export::tmc::{TrialTable, trial_block};
+use stepdamp_export::tmc::{ShiftTable, trial_block};
 
 /// Arguments of `stepdamp accel klipper-trial`.
 #[derive(clap::Args, Debug)]
@@ -28,7 +28,7 @@ pub struct KlipperTrialArgs {
 
 /// Runs `stepdamp accel klipper-trial`.
 pub(super) fn run_klipper_trial(a: KlipperTrialArgs) -> Result<()> {
-    let t = TrialTable::new(a.harmonic, a.shift_rad)?;
+    let t = ShiftTable::trial(a.harmonic, a.shift_rad)?;
     let block = trial_block(&t, &a.axis)?;
     write_atomic(&a.out, block.as_bytes())?;
     outln!(

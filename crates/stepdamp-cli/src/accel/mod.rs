@@ -1,16 +1,20 @@
 //! `stepdamp accel`: the accelerometer route on a printer (docs/accelerometer.md): simulate a
 //! Prusa printer's capture, refine its table from recorded ones, write a Klipper trial table.
 
+mod klipper_refine;
 mod klipper_trial;
 mod refine;
 mod simulate;
+mod simulate_klipper;
 
 use crate::Global;
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result, anyhow, bail};
 use std::path::PathBuf;
+use stepdamp_accel::klipper::TrialShift;
 use stepdamp_accel::{AccelCapture, Axis};
 use stepdamp_export::escape;
 use stepdamp_export::prusa::{self, Firmware, PrusaCorrection, Spectrum};
+use stepdamp_export::tmc::TmcRegisters;
 
 /// `stepdamp accel …`.
 #[derive(clap::Subcommand, Debug)]
@@ -24,6 +28,12 @@ pub enum AccelCommand {
     /// A Klipper block with a Trinamic trial wave table (tmc2130/2240/5160): the current
     /// vector turned by a known U·sin(H·θe), for the trial log of `identify --accel`.
     KlipperTrial(klipper_trial::KlipperTrialArgs),
+    /// One influence step on a Trinamic wave table from Klipper logs recorded with the table
+    /// in use and with the trial table: the table that leaves the least of the harmonic.
+    KlipperRefine(klipper_refine::KlipperRefineArgs),
+    /// Simulate a Klipper printer axis with a Trinamic driver and write its motion-analysis
+    /// log (data_logger.py's .json.gz) of the moves given.
+    SimulateKlipper(simulate_klipper::SimulateKlipperArgs),
 }
 
 /// Runs `stepdamp accel`.
@@ -32,6 +42,8 @@ pub fn run(c: AccelCommand, _g: &Global) -> Result<()> {
         AccelCommand::Simulate(a) => simulate::run_simulate(a),
         AccelCommand::Refine(a) => refine::run_refine(a),
         AccelCommand::KlipperTrial(a) => klipper_trial::run_klipper_trial(a),
+        AccelCommand::KlipperRefine(a) => klipper_refine::run_klipper_refine(a),
+        AccelCommand::SimulateKlipper(a) => simulate_klipper::run_simulate_klipper(a),
     }
 }
 
@@ -70,4 +82,45 @@ pub(crate) fn parse_axis(arg: &str) -> Result<(Axis, char)> {
         "Y" | "y" => Ok((Axis::Y, 'Y')),
         o => bail!("--axis {}: Prusa phase stepping has axes X and Y", escape::line(o)),
     }
+}
+
+/// Every `--klipper-trial LOG=H,U,PHI` as given, parsed (one line naming the argument and
+/// the form when one is not); the library checks that each `LOG` is one of the logs given.
+pub(crate) fn parse_klipper_trials(args: &[String]) -> Result<Vec<(PathBuf, TrialShift)>> {
+    let mut trials = Vec::new();
+    for t in args {
+        let form = || format!("--klipper-trial {}: expected LOG=H,U,PHI (H 1..=16, U and PHI in rad)", escape::line(t));
+        let (log, v) = t.rsplit_once('=').ok_or_else(|| anyhow!(form()))?;
+        let f: Vec<&str> = v.split(',').map(str::trim).collect();
+        let [h, u, phi] = f[..] else { bail!(form()) };
+        let (Ok(harmonic), Ok(amplitude_rad), Ok(phase_rad)) = (h.parse(), u.parse(), phi.parse()) else {
+            bail!(form())
+        };
+        trials.push((PathBuf::from(log), TrialShift { harmonic, amplitude_rad, phase_rad }));
+    }
+    Ok(trials)
+}
+
+/// The motor of a Klipper driver section checked by `tmc::klipper_section` (`section`, as
+/// `arg` gave it): `stepper_x` is X, `stepper_y` Y (on CoreXY the A and B motors).
+pub(crate) fn klipper_motor(section: &str, arg: &str) -> Result<Axis> {
+    match section.split_once(' ').map(|x| x.1) {
+        Some("stepper_x") => Ok(Axis::X),
+        Some("stepper_y") => Ok(Axis::Y),
+        _ => bail!(
+            "--axis \"{}\": the logs are read for stepper_x or stepper_y (on CoreXY the A and B motors)",
+            escape::line(arg)
+        ),
+    }
+}
+
+/// A Trinamic wave table given as `none` (Klipper's default table) or a file with its
+/// `driver_MSLUT…` lines (read bounded).
+pub(crate) fn klipper_table_in_use(arg: &str) -> Result<TmcRegisters> {
+    if arg == "none" {
+        return Ok(TmcRegisters::KLIPPER_DEFAULT);
+    }
+    let bytes = prusa::read::read_capped(std::path::Path::new(arg))?;
+    let Ok(text) = String::from_utf8(bytes) else { bail!("{}: not UTF-8 text", escape::line(arg)) };
+    Ok(stepdamp_export::tmc::parse_klipper(&text, &escape::line(arg))?)
 }

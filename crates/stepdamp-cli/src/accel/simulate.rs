@@ -58,7 +58,7 @@ pub(super) fn run_simulate(a: SimulateArgs) -> Result<()> {
         anyhow!(
             "--gcode `{}`: not a calibration G-code the firmware runs (M973 X|Y F<rev/s> R<revs> H<1..16> A<pha> \
              B<pha> C<mag> D<mag> with C, D in -1..1, or M974 X|Y A<rev/s> B<rev/s> R<revs>)",
-            a.gcode
+            stepdamp_export::escape::line(&a.gcode)
         )
     })?;
     let current = a.current.run_current()?.peak_a();
@@ -75,8 +75,8 @@ pub(super) fn run_simulate(a: SimulateArgs) -> Result<()> {
     write_atomic(&a.out, text.as_bytes())?;
     outln!(
         "wrote {}: {g} on {} at {current} A peak, {} samples at {:.2} Hz",
-        a.out.display(),
-        p.profile.name,
+        stepdamp_export::escape::line(&a.out.display().to_string()),
+        stepdamp_export::escape::line(&p.profile.name),
         trace.samples_m_s2.len(),
         trace.rate_hz
     );

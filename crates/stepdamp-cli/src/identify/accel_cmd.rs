@@ -6,7 +6,7 @@
 use super::args::check_output_dir;
 use super::fit_cmd::FitArgs;
 use crate::common::{load_motor, write_atomic};
-use anyhow::{Result, anyhow, bail};
+use anyhow::{Result, bail};
 use std::f64::consts::TAU;
 use std::path::PathBuf;
 use stepdamp_accel::Reconstruction;
@@ -14,7 +14,6 @@ use stepdamp_accel::klipper::TrialShift;
 use stepdamp_accel::ripple::RippleOptions;
 use stepdamp_accel::ripple::file::RippleFile;
 use stepdamp_accel::sources::{self, Names, Sources};
-use stepdamp_export::escape;
 use stepdamp_export::prusa::Firmware;
 
 /// The belt travel per revolution the pulley radius follows from (mm): `--mm-per-rev`'s range,
@@ -84,18 +83,7 @@ const NAMES: Names = Names { paths: "--accel", axis: "--axis", motor: "--motor",
 /// Every `--klipper-trial LOG=H,U,PHI`, parsed; the library checks that each `LOG` is one of
 /// the `--accel` logs.
 fn klipper_trials(a: &FitArgs) -> Result<Vec<(PathBuf, TrialShift)>> {
-    let mut trials = Vec::new();
-    for t in &a.klipper_trial {
-        let form = || format!("--klipper-trial {}: expected LOG=H,U,PHI (H 1..=16, U and PHI in rad)", escape::line(t));
-        let (log, v) = t.rsplit_once('=').ok_or_else(|| anyhow!(form()))?;
-        let f: Vec<&str> = v.split(',').map(str::trim).collect();
-        let [h, u, phi] = f[..] else { bail!(form()) };
-        let (Ok(harmonic), Ok(amplitude_rad), Ok(phase_rad)) = (h.parse(), u.parse(), phi.parse()) else {
-            bail!(form())
-        };
-        trials.push((PathBuf::from(log), TrialShift { harmonic, amplitude_rad, phase_rad }));
-    }
-    Ok(trials)
+    crate::accel::parse_klipper_trials(&a.klipper_trial)
 }
 
 #[cfg(test)]
