@@ -181,3 +181,38 @@ fn control_characters_from_the_log_are_escaped_in_every_message() {
     no_control(&e);
     assert!(e.contains(r"a\u{7f}b"), "{e}");
 }
+
+/// A log of one steady forward move (1.5 s from 10 s, a step every `interval` µs) with
+/// noise-free zero samples, carrying `trial`.
+fn steady_log(interval: u32, trial: Option<TrialShift>) -> Log {
+    let n = 1_500_000 / interval;
+    let steps = format!(
+        r#"{{"q":"stepq:stepper_x","params":{{"data":[[{interval},{n},0]],"start_mcu_position":0,"first_clock":10000000,"first_step_time":10.0,"last_clock":{},"last_step_time":{}}}}}"#,
+        10_000_000 + interval * (n - 1),
+        10.0 + f64::from(interval * (n - 1)) * 1e-6
+    );
+    let rows: Vec<String> = (0..8000).map(|k| format!("[{},0,0,0]", 9.5 + k as f64 / 3200.0)).collect();
+    let a = format!(r#"{{"q":"accelerometer:adxl345","params":{{"data":[{}]}}}}"#, rows.join(","));
+    let o = KlipperOptions { trial, ..opts() };
+    read_log(gz(&[config("cartesian"), steps, a]).as_slice(), "t.json.gz", &o).unwrap()
+}
+
+#[test]
+fn the_table_step_refuses_logs_that_cannot_measure_an_influence() {
+    use super::table_step::table_step;
+    let t = |h, u, phi| Some(TrialShift { harmonic: h, amplitude_rad: u, phase_rad: phi });
+    let base = steady_log(100, None);
+    let err = |b: &[Log], tr: &[Log], in_use: f64| table_step(b, tr, 4, in_use, 20).unwrap_err().to_string();
+    let e = err(&[steady_log(100, t(4, 0.1, 0.0))], &[steady_log(100, t(4, 0.1, 0.0))], 0.0);
+    assert!(e.contains("a baseline log with a trial"), "{e}");
+    assert!(err(std::slice::from_ref(&base), &[steady_log(100, None)], 0.0).contains("a trial log without its trial"));
+    assert!(err(std::slice::from_ref(&base), &[steady_log(100, t(8, 0.1, 0.0))], 0.0).contains("sine phase only"));
+    assert!(err(std::slice::from_ref(&base), &[steady_log(100, t(4, 0.1, 1.0))], 0.0).contains("sine phase only"));
+    assert!(err(std::slice::from_ref(&base), &[steady_log(100, t(4, 0.1, 0.0))], 0.1).contains("no change to measure"));
+    // A trial at another speed has no baseline to pair with.
+    let e = err(std::slice::from_ref(&base), &[steady_log(125, t(4, 0.1, 0.0))], 0.0);
+    assert!(e.contains("no steady stretch of a trial log"), "{e}");
+    // Paired, but the samples are all 0: the trial changed nothing measurable.
+    let e = err(&[base], &[steady_log(100, t(4, 0.1, std::f64::consts::PI))], 0.0);
+    assert!(e.contains("within the noise"), "{e}");
+}
