@@ -22,6 +22,7 @@
 
 mod frame;
 pub mod motion;
+pub mod plan;
 mod read;
 pub mod segment;
 pub mod table_step;

@@ -1,5 +1,6 @@
-//! The Klipper + Trinamic side of the accelerometer route on simulated printers: logs with
-//! Klipper's default table and with a trial table, one influence step
+//! The Klipper + Trinamic side of the accelerometer route on simulated printers: the moves
+//! `plan_klipper` prints, logged with Klipper's default table and with a trial table, one
+//! influence step
 //! (`stepdamp_accel::klipper::table_step`), the new table written by the exporter, and order 4
 //! measured again on fresh logs (`docs/accelerometer.md#refining-a-trinamic-table`).
 //!
@@ -10,8 +11,10 @@
 use stepdamp_accel::Axis;
 use stepdamp_accel::Gcode;
 use stepdamp_accel::TrialSweep;
+use stepdamp_accel::klipper::plan::{KlipperPlanOptions, plan_klipper};
 use stepdamp_accel::klipper::table_step::{TableStep, steady_responses, table_step};
-use stepdamp_accel::klipper::{KlipperOptions, Log, TrialShift, read_log};
+use stepdamp_accel::klipper::{Kinematics, KlipperOptions, Log, TrialShift, read_log};
+use stepdamp_accel::ripple::Direction;
 use stepdamp_export::tmc::{self, ShiftTable, TmcRegisters, order_parts};
 use stepdamp_printer::{KlipperSetup, SimulatedPrinter, family_printer};
 use stepdamp_sim::Profile;
@@ -24,29 +27,42 @@ fn real_motor() -> Profile {
     Profile::from_file(std::path::Path::new(path)).unwrap()
 }
 
-/// A steady 2 rev/s over `revs` (signed) as a move shape, no `M973` trial.
-fn steady(revs: f64) -> Gcode {
+/// The moves `plan_klipper` prints for `p`'s X motor (cartesian, its belt's mm per
+/// revolution, 100 mm of travel), each as a move shape: a steady `M973` at the plan's speed
+/// over the move's motor revolutions (`R < 0` forward), no `M973` trial.
+fn planned_moves(p: &SimulatedPrinter) -> Vec<Gcode> {
+    let o = KlipperPlanOptions {
+        rotation_distance_mm: p.reconstruction().mm_per_rev,
+        ..KlipperPlanOptions::new(Kinematics::Cartesian, Axis::X)
+    };
+    let plan = plan_klipper(&o).unwrap();
     let trial = TrialSweep { harmonic: 4, pha_start: 0.0, pha_end: 0.0, mag_start: 0.0, mag_end: 0.0 };
-    Gcode::ParamSweep { axis: Axis::X, speed: 2.0, revs, trial }
+    plan.moves
+        .iter()
+        .map(|m| Gcode::ParamSweep { axis: Axis::X, speed: o.speed_rev_s, revs: -m.motor_revs, trial })
+        .collect()
 }
 
-/// `p` with `registers` in its driver, recording both directions with noise seed `seed`,
+/// `p` with `registers` in its driver, recording the planned moves with noise seed `seed`,
 /// read back with `trial` told.
 fn log(p: &SimulatedPrinter, registers: &TmcRegisters, seed: u64, trial: Option<TrialShift>) -> Log {
     let with = SimulatedPrinter { driver_table: Some(tmc::table(registers)), seed, ..p.clone() };
-    let m = with.motan_log(&[steady(6.0), steady(-6.0)], &KlipperSetup::default()).unwrap();
+    let m = with.motan_log(&planned_moves(p), &KlipperSetup::default()).unwrap();
     let o = KlipperOptions { axis: Axis::X, accelerometer: None, trial };
     read_log(m.json_gz.as_slice(), "sim.json.gz", &o).unwrap()
 }
 
-/// One printer's route: the step, then per direction (forward first) the order-4 response
-/// before and after (m/s²) measured on fresh logs, the after's 95 % radius, and the floor.
+/// One printer's route: the step, then per direction (forward, backward) the order-4
+/// response before and after (m/s²) measured on fresh logs, the after's 95 % radius, and the
+/// floor.
 struct Outcome {
     step: TableStep,
     before: [f64; 2],
     after: [f64; 2],
     after_radius95: [f64; 2],
     floor: [f64; 2],
+    /// The step's baseline radius per direction (the floor's noise).
+    step_radius95: [f64; 2],
 }
 
 fn route(p: &SimulatedPrinter, seed: u64) -> Outcome {
@@ -59,19 +75,21 @@ fn route(p: &SimulatedPrinter, seed: u64) -> Outcome {
     let step = table_step(&[base], &[with_trial], 4, in_use, PER_BLOCK).unwrap();
     let new = ShiftTable::new(4, step.new_rad).unwrap();
     // Fresh noise for the score: neither log was used by the step.
+    const WAYS: [Direction; 2] = [Direction::Forward, Direction::Backward];
     let measure = |r: &TmcRegisters, s: u64| {
         let l = log(p, r, s, None);
-        let v = steady_responses(&l, 4, PER_BLOCK);
-        assert_eq!(v.len(), 2, "one steady stretch per direction");
-        [(v[0].1.value.abs(), v[0].1.radius95), (v[1].1.value.abs(), v[1].1.radius95)]
+        let v = steady_responses(std::slice::from_ref(&l), 4, PER_BLOCK);
+        assert_eq!(v.len(), 2, "one response per direction, its stretches pooled");
+        WAYS.map(|d| v.iter().find(|x| x.0 == d).map(|x| (x.1.value.abs(), x.1.radius95)).expect("both ways"))
     };
     let (before, after) = (measure(&default, 3 * seed + 2), measure(&new.registers, 3 * seed + 2));
-    let floor = [step.pairs[0].floor_m_s2, step.pairs[1].floor_m_s2];
+    let pair = |d: Direction| *step.pairs.iter().find(|x| x.direction == d).expect("both ways");
     Outcome {
-        before: [before[0].0, before[1].0],
-        after: [after[0].0, after[1].0],
-        after_radius95: [after[0].1, after[1].1],
-        floor,
+        before: before.map(|x| x.0),
+        after: after.map(|x| x.0),
+        after_radius95: after.map(|x| x.1),
+        floor: WAYS.map(|d| pair(d).floor_m_s2),
+        step_radius95: WAYS.map(|d| pair(d).baseline.radius95),
         step,
     }
 }
@@ -116,7 +134,7 @@ fn on_thirty_random_printers_one_step_reaches_the_sine_table_floor() {
             let (got, best) = (db(o.before[d], o.after[d]), db(o.before[d], o.floor[d].max(1e-12)));
             at_20 += usize::from(got >= 20.0);
             // How far above the floor the residual is, less the noise, in units of the baseline.
-            let noise = 2.0 * (o.after_radius95[d] + o.step.pairs[d].baseline.radius95);
+            let noise = 2.0 * (o.after_radius95[d] + o.step_radius95[d]);
             worst_over_floor = worst_over_floor.max((o.after[d] - o.floor[d] - noise) / o.before[d]);
             println!(
                 "printer {seed:2} {}: {:.2} -> {:.3} m/s², {got:5.1} dB (a sine table's best {best:5.1} dB), shift {:+.4} rad",

@@ -13,14 +13,15 @@
 
 use super::{Log, Segment};
 use crate::influence::{Complex, InfluenceError, Response, f2_quantile_95, influence};
-use crate::lockin::window_blocks;
+use crate::lockin::{BlockResponse, window_blocks};
 use crate::ripple::Direction;
 
 /// A stretch is measured as one response when its commanded speed stays within this share of
 /// its mean (a steady move; a sweep's stretches are not used).
 pub const STEADY_SPREAD: f64 = 0.01;
 
-/// Stretches of the two logs pair up when their mean speeds agree within this share.
+/// Stretches pool, and the two logs' responses pair up, when their mean speeds agree within
+/// this share.
 pub const SAME_SPEED: f64 = 0.01;
 
 /// One pair of stretches: the same direction and speed, with the table in use and the trial.
@@ -61,16 +62,20 @@ pub struct TableStep {
     pub new_radius95_rad: f64,
 }
 
-/// The response of `harmonic` in a steady stretch (blocks of `per_block` whole periods, their
-/// mean and 95 % radius as [`crate::influence::harmonic_response`] computes them), with its mean
-/// speed; `None` for a stretch that is not steady or holds fewer than 3 blocks.
-fn steady_response(s: &Segment, harmonic: u32, per_block: u32) -> Option<Response> {
+/// The blocks of `harmonic` in a steady stretch (of `per_block` whole periods), with the
+/// stretch's mean speed; `None` for a stretch that is not steady.
+fn steady_blocks(s: &Segment, harmonic: u32, per_block: u32) -> Option<(f64, Vec<BlockResponse>)> {
     let c = &s.log.commanded[s.range.clone()];
     let mean = c.iter().map(|x| x.speed_rev_s).sum::<f64>() / c.len() as f64;
     if c.iter().any(|x| (x.speed_rev_s - mean).abs() > STEADY_SPREAD * mean.abs()) {
         return None;
     }
-    let blocks = window_blocks(c, &s.log.accel_m_s2[s.range.clone()], s.span_s(), harmonic, per_block);
+    Some((mean, window_blocks(c, &s.log.accel_m_s2[s.range.clone()], s.span_s(), harmonic, per_block)))
+}
+
+/// The response of pooled blocks: their mean and 95 % radius as
+/// [`crate::influence::harmonic_response`] computes them; `None` below 3 blocks.
+fn pooled(blocks: &[BlockResponse], harmonic: u32, per_block: u32, speed_rev_s: f64) -> Option<Response> {
     if blocks.len() < 3 {
         return None;
     }
@@ -78,7 +83,36 @@ fn steady_response(s: &Segment, harmonic: u32, per_block: u32) -> Option<Respons
     let value = blocks.iter().fold(Complex::default(), |a, x| a + x.value).scale(1.0 / b);
     let spread: f64 = blocks.iter().map(|x| (x.value - value).norm_sqr()).sum();
     let radius95 = (f2_quantile_95(2.0 * (b - 1.0)) * spread / (b * (b - 1.0))).sqrt();
-    Some(Response { harmonic, value, radius95, blocks: blocks.len(), periods_per_block: per_block, speed_rev_s: mean })
+    Some(Response { harmonic, value, radius95, blocks: blocks.len(), periods_per_block: per_block, speed_rev_s })
+}
+
+/// The response of `harmonic` per direction and speed in the steady stretches of `logs`: the
+/// blocks of every stretch of one direction whose mean speed is within [`SAME_SPEED`] of the
+/// group's first are pooled (the lock-in is against the logs' own electrical angle, so moves
+/// back and forth add up), the speed is their mean. Groups of fewer than 3 blocks are left out.
+pub fn steady_responses(logs: &[Log], harmonic: u32, per_block: u32) -> Vec<(Direction, Response)> {
+    let mut groups: Vec<(Direction, f64, f64, Vec<BlockResponse>)> = Vec::new();
+    for s in logs.iter().flat_map(Log::segments) {
+        let Some((v, blocks)) = steady_blocks(&s, harmonic, per_block) else { continue };
+        let same = |g: &&mut (Direction, f64, f64, Vec<BlockResponse>)| {
+            g.0 == s.direction && (g.1 - v).abs() <= SAME_SPEED * v.abs()
+        };
+        let w = blocks.len() as f64;
+        match groups.iter_mut().find(same) {
+            Some(g) => {
+                g.2 += v * w;
+                g.3.extend(blocks);
+            }
+            None => groups.push((s.direction, v, v * w, blocks)),
+        }
+    }
+    groups
+        .into_iter()
+        .filter_map(|(d, _, sum_v, blocks)| {
+            let v = sum_v / blocks.len().max(1) as f64;
+            pooled(&blocks, harmonic, per_block, v).map(|r| (d, r))
+        })
+        .collect()
 }
 
 /// The trial logs' common shift at `harmonic` (rad, signed): each must carry a trial of that
@@ -110,8 +144,8 @@ fn trial_shift(trial: &[Log], harmonic: u32) -> Result<f64, InfluenceError> {
 
 /// The step from `baseline` logs (the table in use, shift `in_use_rad` at `harmonic`, no
 /// trial) and `trial` logs (each with its [`super::TrialShift`], the trial table's shift):
-/// every steady stretch of a trial log paired with the baseline's stretch of the same direction
-/// and speed ([`SAME_SPEED`]). Refuses: no pair, a trial that moved a pair's response within
+/// the trial logs' responses per direction and speed ([`steady_responses`]) paired with the
+/// baseline's of the same direction and speed ([`SAME_SPEED`]). Refuses: no pair, a trial that moved a pair's response within
 /// the noise ([`influence`]), trials of another order or phase.
 pub fn table_step(
     baseline: &[Log],
@@ -132,15 +166,13 @@ pub fn table_step(
     if t.abs() < 1e-6 {
         return Err(bad(format!("the trial's shift {trial_rad} rad is the table in use's: no change to measure")));
     }
-    let base: Vec<(Direction, Response)> =
-        baseline.iter().flat_map(|l| steady_responses(l, harmonic, per_block)).collect();
+    let base = steady_responses(baseline, harmonic, per_block);
     let mut pairs = Vec::new();
-    for s in trial.iter().flat_map(Log::segments) {
-        let Some(y1) = steady_response(&s, harmonic, per_block) else { continue };
+    for (direction, y1) in steady_responses(trial, harmonic, per_block) {
         let same = |(d, r): &&(Direction, Response)| {
-            *d == s.direction && (r.speed_rev_s - y1.speed_rev_s).abs() <= SAME_SPEED * y1.speed_rev_s.abs()
+            *d == direction && (r.speed_rev_s - y1.speed_rev_s).abs() <= SAME_SPEED * y1.speed_rev_s.abs()
         };
-        let Some(&(direction, y0)) = base.iter().find(same) else { continue };
+        let Some(&(_, y0)) = base.iter().find(same) else { continue };
         // The pair's speeds agree within SAME_SPEED: compare them as one speed.
         let i = influence(&y0, &Response { speed_rev_s: y0.speed_rev_s, ..y1 }, Complex::new(t, 0.0))?;
         let c = i.coefficient;
@@ -173,12 +205,6 @@ pub fn table_step(
         var += (k0 * p.baseline.radius95).powi(2) + (b.abs() * p.trial.radius95).powi(2);
     }
     Ok(TableStep { harmonic, in_use_rad, trial_rad, pairs, new_rad: in_use_rad + delta, new_radius95_rad: var.sqrt() })
-}
-
-/// The response of `harmonic` in every steady stretch of `log` (blocks of `per_block` whole
-/// periods), with its direction: what a log recorded with a table measures.
-pub fn steady_responses(log: &Log, harmonic: u32, per_block: u32) -> Vec<(Direction, Response)> {
-    log.segments().iter().filter_map(|s| steady_response(s, harmonic, per_block).map(|r| (s.direction, r))).collect()
 }
 
 impl std::fmt::Display for TableStep {
