@@ -34,7 +34,7 @@ fn record(registers: &TmcRegisters, seed: u64, path: &Path) {
 /// Order 4's response in each direction of the log at `path` (m/s²).
 fn order_4(path: &Path) -> Vec<f64> {
     let log = read_file(path, &KlipperOptions { axis: Axis::X, accelerometer: None, trial: None }).unwrap();
-    steady_responses(&log, 4, 20).iter().map(|r| r.1.value.abs()).collect()
+    steady_responses(std::slice::from_ref(&log), 4, 20).iter().map(|r| r.1.value.abs()).collect()
 }
 
 fn registers_of(path: &Path) -> TmcRegisters {
@@ -112,4 +112,19 @@ fn klipper_refine_refuses_what_it_cannot_use_in_one_line() {
     let o = stepdamp(&[&a[..], &["--axis", x, "--in-use", &missing, "--out", &out]].concat());
     assert_eq!(o.status.code(), Some(1), "{}", text(&o));
     assert!(text(&o).contains("missing.cfg") && !Path::new(&out).exists(), "{}", text(&o));
+}
+
+#[test]
+fn klipper_plan_prints_the_moves_and_refuses_a_travel_too_short_naming_the_least() {
+    let a =
+        ["accel", "klipper-plan", "--axis", "tmc2240 stepper_y", "--kinematics", "corexy", "--rotation-distance", "32"];
+    let o = stepdamp(&a);
+    assert!(o.status.success(), "{}", text(&o));
+    let t = text(&o);
+    // B alone: x = −y; 100 mm each is 200 mm of belt at 64 mm/s, the head at 64/√2 mm/s.
+    assert!(t.contains("G1 X100 Y-100 F2715.29\nG4 P300\nG1 X-100 Y100 F2715.29\n"), "{t}");
+    assert!(t.lines().all(|l| l.is_ascii() || l.starts_with(';')), "{t}");
+    let o = stepdamp(&[&a[..], &["--travel-mm", "20"]].concat());
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(text(&o).contains("at least") && text(&o).trim().lines().count() == 1, "{}", text(&o));
 }

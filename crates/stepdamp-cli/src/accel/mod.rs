@@ -1,6 +1,7 @@
 //! `stepdamp accel`: the accelerometer route on a printer (docs/accelerometer.md): simulate a
 //! Prusa printer's capture, refine its table from recorded ones, write a Klipper trial table.
 
+mod klipper_plan;
 mod klipper_refine;
 mod klipper_trial;
 mod refine;
@@ -25,6 +26,9 @@ pub enum AccelCommand {
     /// One influence step from recorded M973 captures (`identify plan --accel` lists them):
     /// the Prusa table (M971 lines, firmware >= 6.3.1) that cancels what they measured.
     Refine(refine::RefineArgs),
+    /// The Klipper G-code of the moves to log for `klipper-refine` (one motor, back and
+    /// forth at a steady speed), with the steps around it.
+    KlipperPlan(klipper_plan::KlipperPlanArgs),
     /// A Klipper block with a Trinamic trial wave table (tmc2130/2240/5160): the current
     /// vector turned by a known U·sin(H·θe), for the trial log of `identify --accel`.
     KlipperTrial(klipper_trial::KlipperTrialArgs),
@@ -41,6 +45,7 @@ pub fn run(c: AccelCommand, _g: &Global) -> Result<()> {
     match c {
         AccelCommand::Simulate(a) => simulate::run_simulate(a),
         AccelCommand::Refine(a) => refine::run_refine(a),
+        AccelCommand::KlipperPlan(a) => klipper_plan::run_klipper_plan(a),
         AccelCommand::KlipperTrial(a) => klipper_trial::run_klipper_trial(a),
         AccelCommand::KlipperRefine(a) => klipper_refine::run_klipper_refine(a),
         AccelCommand::SimulateKlipper(a) => simulate_klipper::run_simulate_klipper(a),
