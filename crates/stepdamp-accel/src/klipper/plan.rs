@@ -105,7 +105,7 @@ pub fn plan_klipper(o: &KlipperPlanOptions) -> Result<KlipperPlan, KlipperPlanEr
     ];
     for (what, v, lo, hi, unit) in checks {
         if !(v.is_finite() && (lo..=hi).contains(&v)) {
-            return bad(format!("{what}: {v} must be in {lo}..={hi} {unit}"));
+            return bad(format!("{what}: {v:?} must be in {lo}..={hi} {unit}"));
         }
     }
     let hz = f64::from(o.harmonic) * f64::from(o.pole_pairs) * o.speed_rev_s;
