@@ -207,6 +207,24 @@ pub fn table_step(
     Ok(TableStep { harmonic, in_use_rad, trial_rad, pairs, new_rad: in_use_rad + delta, new_radius95_rad: var.sqrt() })
 }
 
+/// [`table_step`] from the logs as read, told apart by their trial: those without one are the
+/// baseline, those with one the trial. Refuses logs that are all of one kind.
+pub fn table_step_of_logs(
+    logs: &[Log],
+    harmonic: u32,
+    in_use_rad: f64,
+    per_block: u32,
+) -> Result<TableStep, InfluenceError> {
+    let (trial, baseline): (Vec<Log>, Vec<Log>) = logs.iter().cloned().partition(|l| l.trial.is_some());
+    if baseline.is_empty() || trial.is_empty() {
+        let which = if baseline.is_empty() { "every log is a trial log" } else { "no log has a trial" };
+        return Err(InfluenceError::Indeterminate(format!(
+            "{which}: the step needs logs recorded with the table in use and with the trial table"
+        )));
+    }
+    table_step(&baseline, &trial, harmonic, in_use_rad, per_block)
+}
+
 impl std::fmt::Display for TableStep {
     /// The step as a report: the shifts, then per pair the responses with their 95 % radii,
     /// the influence, what the linear model expects and the floor; one line each, ASCII

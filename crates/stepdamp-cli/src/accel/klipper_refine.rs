@@ -5,7 +5,7 @@
 use crate::common::{load_motor, write_atomic};
 use anyhow::{Result, anyhow, bail};
 use std::path::PathBuf;
-use stepdamp_accel::klipper::table_step::table_step;
+use stepdamp_accel::klipper::table_step::table_step_of_logs;
 use stepdamp_accel::sources::{Names, Sources, read};
 use stepdamp_export::escape;
 use stepdamp_export::tmc::{self, ShiftTable};
@@ -55,21 +55,12 @@ pub(super) fn run_klipper_refine(a: KlipperRefineArgs) -> Result<()> {
     let Sources::Klipper(logs) = read(&a.logs, axis, &trials, u32::from(motor.motor.pole_pairs), &names)? else {
         bail!("--log: Prusa captures; accel refine takes those (this command reads Klipper's logs)")
     };
-    let (trial, baseline): (Vec<_>, Vec<_>) = logs.into_iter().partition(|l| l.trial.is_some());
-    if baseline.is_empty() {
-        bail!("--log: every log is a trial log: record one with the table in use too");
-    }
     let used = super::klipper_table_in_use(&a.in_use)?;
     let in_use_rad = tmc::order_parts(&used.decode(), order).0;
-    let step = table_step(&baseline, &trial, first.harmonic, in_use_rad, a.periods_per_block)?;
+    let step = table_step_of_logs(&logs, first.harmonic, in_use_rad, a.periods_per_block)?;
     out!("{step}");
     let table = ShiftTable::new(order, step.new_rad)?;
-    let mut block = String::new();
-    for line in step.to_string().lines() {
-        // ASCII, as the block's other lines: Klipper reads the file in the locale's encoding.
-        block += &format!("# {}\n", escape::line(&line.replace('²', "^2")));
-    }
-    block += &tmc::shift_block(&table, &a.axis)?;
+    let block = tmc::shift_block(&table, &a.axis, &step.to_string())?;
     write_atomic(&a.out, block.as_bytes())?;
     outln!(
         "wrote {}: the table turns the current vector by {:+.4}·sin({}·θe) rad; record again with it (--in-use {}) to check",

@@ -119,11 +119,21 @@ pub fn trial_block(t: &ShiftTable, axis: &str) -> Result<String, ExportError> {
     Ok(s + &t.registers.klipper_lines())
 }
 
-/// The Klipper config block of a correction table (`accel klipper-refine`): what it does and
-/// how to load it (as [`trial_block`]), then the section and its `driver_…` lines. ASCII only.
-pub fn shift_block(t: &ShiftTable, axis: &str) -> Result<String, ExportError> {
+/// The Klipper config block of a correction table (`accel klipper-refine`): `notes` (the step
+/// that gave it, any lines) as `#` comments made ASCII (each line escaped to one printable
+/// line, `²` as `^2`: Klipper reads the file in the locale's encoding), what the table does and
+/// how to load it (as [`trial_block`]), then the section and its `driver_…` lines.
+pub fn shift_block(t: &ShiftTable, axis: &str, notes: &str) -> Result<String, ExportError> {
     let section = klipper_section(axis)?;
-    let mut s = format!(
+    let mut s = String::new();
+    for line in notes.lines() {
+        let ascii: String = crate::escape::line(&line.replace('²', "^2"))
+            .chars()
+            .map(|c| if c.is_ascii() { c.to_string() } else { c.escape_unicode().to_string() })
+            .collect();
+        s += &format!("# {ascii}\n");
+    }
+    s += &format!(
         "# Wave table from stepdamp: turns the current vector by {:.4}*sin({}*theta_e) rad\n\
          # (asked {:.4}; other orders within {:.4} rad, the table's rounding).\n",
         t.achieved_rad, t.harmonic, t.shift_rad, t.stray_rad
@@ -167,6 +177,10 @@ mod tests {
         assert_eq!(parse_klipper(&b, "trial.cfg").unwrap(), t.registers);
         assert!(b.contains(&format!("--klipper-trial TRIAL_LOG={}", t.klipper_trial_arg())), "{b}");
         assert!(b.contains("[tmc5160 stepper_x]\n") && b.is_ascii(), "{b}");
+        let notes = "harmonic 4: 1.2 m/s² \u{1b}[31m\nsecond line é";
+        let c = shift_block(&t, "tmc5160 stepper_x", notes).unwrap();
+        assert!(c.is_ascii() && c.starts_with("# harmonic 4: 1.2 m/s^2 \\x1b[31m\n# second line \\u{e9}\n"), "{c}");
+        assert_eq!(parse_klipper(&c, "c.cfg").unwrap(), t.registers);
         let neg = ShiftTable::trial(4, -0.05).unwrap();
         assert_eq!(neg.klipper_trial_arg(), format!("4,{:.4},3.14159265", -neg.achieved_rad));
     }
