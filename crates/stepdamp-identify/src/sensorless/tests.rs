@@ -376,3 +376,52 @@ fn the_sensorless_route_measures_the_flux_shape_from_the_radius() {
     eprintln!("the circle: I_hold/2 {e_circle:.2}");
     assert!(e_circle > 2.0, "{e_circle}");
 }
+
+/// A base whose `L` is 30 % high on a motor whose phase b is 18 % strong (both as written
+/// in the base, within the limits): the `L·i` error adds to the radius's `cos 2θe` term
+/// about `g·k/(1 − k)`, `k = ΔL·I_hold/(Km/Nr)`, so the corrected `phase_b_gain` (measured
+/// 0.22) is past the profile's limit. The route keeps the base's shape, still identifies,
+/// and says why in one line, which the report's notes carry
+/// (docs/sensorless.md#the-flux-shape-without-a-sensor).
+#[test]
+fn a_flux_correction_the_profile_refuses_keeps_the_bases_shape_and_is_noted() {
+    use super::report::SensorlessReport;
+    use stepdamp_profile::flux::flux_limits::PHASE_B_GAIN;
+    let m = real_motor().edited("strong-b", |p| p.motor.flux.phase_b_gain = 0.18).unwrap();
+    let base = m
+        .edited("base", |p| {
+            p.motor.detent.clear();
+            p.motor.resistance_ohm *= 1.1;
+            p.motor.inductance_h *= 1.3;
+        })
+        .unwrap();
+    let p = plan(&base, &SensorlessPlanOptions::default()).unwrap();
+    let logs: Vec<_> = p
+        .runs
+        .par_iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let rows = simulate_open_loop_run(&m, &base, r, 0.005, run_seed(1, i as u64)).unwrap();
+            SensorlessLog::from_rows(&rows, &r.name)
+        })
+        .collect();
+    let f = identify_sensorless(&logs, &base, &fit_options(&base, &[1, 2, 4]), &FluxOptions::default())
+        .expect("a refused correction is a note, not an error");
+    let shape = f.shape.clone().expect("four logs determine the shape");
+    eprintln!(
+        "measured g {:?} on the base's {}; refused: {:?}",
+        shape.phase_b_gain, base.motor.flux.phase_b_gain, f.shape_refused
+    );
+    // The correction asked for is past the limit by more than its interval.
+    let asked = base.motor.flux.phase_b_gain + shape.phase_b_gain.value;
+    assert!(asked - shape.phase_b_gain.ci95 > PHASE_B_GAIN.max, "asked g {asked}, {:?}", shape.phase_b_gain);
+    let note = f.shape_refused.clone().expect("the refusal is recorded");
+    assert!(!note.contains('\n'), "one line: {note}");
+    assert!(note.contains("[motor.flux]") && note.contains(PHASE_B_GAIN.key) && note.contains("[-0.2, 0.2]"), "{note}");
+    assert!(note.contains("kept the previous shape") && note.contains("check L"), "{note}");
+    assert_eq!(f.flux, base.motor.flux, "the base's shape is the one used and written");
+    let report =
+        SensorlessReport::new(&base.name, base.motor.resistance_ohm, base.motor.km_nm_per_a, &base.motor.flux, &f);
+    assert!(report.notes.contains(&note), "{:?}", report.notes);
+    assert_eq!(report.flux_written, None);
+}
