@@ -19,8 +19,8 @@
 //! Measured on all 50 (release, `--ignored`): `g` within 3·10⁻⁴ and `|X₃ + X₅|` within
 //! 8·10⁻⁵ and 0.009 rad on every motor, so the CI test asserts 10⁻³, 5·10⁻⁴ and 0.05 rad. The
 //! acceptance **fails**: open-loop ripple worst 9.2 of the tolerance (the circle: 22), 15 of 50
-//! motors within it; patent's law down to −26 % of the true profile's dB, estimated mode down
-//! to 0.5×. What is left is the split of the sum between third and fifth, which open loop
+//! motors within it (the count [`family`] prints); patent's law down to −26 % of the true
+//! profile's dB, estimated mode down to 0.5×. What is left is the split of the sum between third and fifth, which open loop
 //! does not show (docs/sensorless.md#the-flux-shape-without-a-sensor), hence `#[ignore]`d and
 //! kept as asked.
 //!
@@ -46,6 +46,9 @@ use stepdamp_identify::simulate::simulate_open_loop_run;
 const CI_MOTORS: u64 = 2;
 /// Current-sensor noise, A.
 const NOISE_A: f64 = 0.005;
+/// The acceptance's bound on the worst open-loop ripple error, in units of the tolerance
+/// max(10 %, 1 mN·m): a motor at or below it is within the tolerance at both currents.
+const WITHIN_TOLERANCE: f64 = 1.0;
 
 /// What one motor gives.
 struct Outcome {
@@ -172,9 +175,23 @@ fn family(seeds: std::ops::Range<u64>) {
         least(&|r| r.comp.as_ref().unwrap().1),
         median(&|r| r.comp.as_ref().unwrap().1)
     );
+    let within = |f: &dyn Fn(&Outcome) -> f64| results.iter().filter(|r| f(r) <= WITHIN_TOLERANCE).count();
+    println!(
+        "motors within the tolerance at both currents (open-loop I_hold and I_hold/2): {} of {} with the flux shape, {} of {} with the circle",
+        within(&|r| r.open_loop.0),
+        results.len(),
+        within(&|r| r.circle),
+        results.len()
+    );
     for r in &results {
         let c = r.comp.as_ref().unwrap();
-        assert!(r.open_loop.0 <= 1.0, "motor {}: {:.2} of the tolerance at {}", r.seed, r.open_loop.0, r.open_loop.1);
+        assert!(
+            r.open_loop.0 <= WITHIN_TOLERANCE,
+            "motor {}: {:.2} of the tolerance at {}",
+            r.seed,
+            r.open_loop.0,
+            r.open_loop.1
+        );
         assert!(c.0 >= 0.8, "motor {}: {:.0} % of the true profile's dB reduction", r.seed, 100.0 * c.0);
         assert!(c.2 >= 0.8, "motor {}: estimated mode {:.0} % of the true profile's dB", r.seed, 100.0 * c.2);
     }
