@@ -26,8 +26,10 @@ use stepdamp_core::{CorrectionTable, TABLE_TICKS};
 use stepdamp_sim::Profile;
 use stepdamp_sim::profile::DetentTerm;
 
+mod refine;
 mod shift;
-pub use shift::{MAX_TRIAL_SHIFT_RAD, MIN_TRIAL_SHIFT_RAD, ShiftTable, shift_block, trial_block};
+pub use refine::{KlipperRefined, klipper_refine};
+pub use shift::{MAX_TRIAL_SHIFT_RAD, MIN_TRIAL_SHIFT_RAD, ShiftTable, check_order, shift_block, trial_block};
 
 /// The Klipper driver sections that accept `driver_MSLUT0` … `driver_START_SIN90`: the
 /// modules that call `TMCWaveTableHelper` (Klipper `klippy/extras/tmc.py`, at the commit

@@ -5,10 +5,9 @@
 use crate::common::{load_motor, write_atomic};
 use anyhow::{Result, anyhow, bail};
 use std::path::PathBuf;
-use stepdamp_accel::klipper::table_step::table_step_of_logs;
 use stepdamp_accel::sources::{Names, Sources, read};
 use stepdamp_export::escape;
-use stepdamp_export::tmc::{self, ShiftTable};
+use stepdamp_export::tmc;
 
 /// Arguments of `stepdamp accel klipper-refine`.
 #[derive(clap::Args, Debug)]
@@ -48,25 +47,22 @@ pub(super) fn run_klipper_refine(a: KlipperRefineArgs) -> Result<()> {
     let motor = load_motor(&a.motor)?;
     let trials = super::parse_klipper_trials(&a.klipper_trial)?;
     let Some(&(_, first)) = trials.first() else { bail!("--klipper-trial: at least one trial log") };
-    // The orders a table turns are the exporter's to say: refuse others before measuring.
-    let order = u16::try_from(first.harmonic).unwrap_or(0);
-    ShiftTable::new(order, 0.0).map_err(|e| anyhow!("--klipper-trial: {e}"))?;
+    // Refuse an order no table turns before reading the logs.
+    tmc::check_order(first.harmonic).map_err(|e| anyhow!("--klipper-trial: {e}"))?;
     let names = Names { paths: "--log", axis: "--axis", motor: "--motor", trial: "--klipper-trial" };
     let Sources::Klipper(logs) = read(&a.logs, axis, &trials, u32::from(motor.motor.pole_pairs), &names)? else {
         bail!("--log: Prusa captures; accel refine takes those (this command reads Klipper's logs)")
     };
     let used = super::klipper_table_in_use(&a.in_use)?;
-    let in_use_rad = tmc::order_parts(&used.decode(), order).0;
-    let step = table_step_of_logs(&logs, first.harmonic, in_use_rad, a.periods_per_block)?;
-    out!("{step}");
-    let table = ShiftTable::new(order, step.new_rad)?;
-    let block = tmc::shift_block(&table, &a.axis, &step.to_string())?;
+    let r = tmc::klipper_refine(&logs, &used, &a.axis, a.periods_per_block)?;
+    out!("{}", r.step);
+    let (table, block) = (r.table, r.block);
     write_atomic(&a.out, block.as_bytes())?;
     outln!(
         "wrote {}: the table turns the current vector by {:+.4}·sin({}·θe) rad; record again with it (--in-use {}) to check",
         escape::line(&a.out.display().to_string()),
         table.achieved_rad,
-        order,
+        table.harmonic,
         escape::line(&a.out.display().to_string())
     );
     Ok(())

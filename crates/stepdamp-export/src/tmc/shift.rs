@@ -27,6 +27,17 @@ pub const MIN_TRIAL_SHIFT_RAD: f64 = 4.0 / FULL_SCALE as f64;
 /// [`ShiftTable::new`] refuses the encoding.
 pub const MAX_TRIAL_SHIFT_RAD: f64 = 0.25;
 
+/// `harmonic` as a table order: one of 4, 8, 12, 16 (what a Trinamic table turns), or the
+/// one-line refusal.
+pub fn check_order(harmonic: u32) -> Result<u16, ExportError> {
+    match u16::try_from(harmonic) {
+        Ok(h) if h % 4 == 0 && (4..=16).contains(&h) => Ok(h),
+        _ => Err(ExportError::Invalid(format!(
+            "shift order {harmonic}: a Trinamic table turns the current only at orders 4, 8, 12, 16 (sine phase)"
+        ))),
+    }
+}
+
 /// A table turning the current vector by `ε·sin(H·θe)`, and the shift it makes: a trial
 /// ([`ShiftTable::trial`]) or a correction ([`ShiftTable::new`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -51,11 +62,7 @@ impl ShiftTable {
     /// cannot carry, a shift not finite or beyond that, and a wave the registers cannot
     /// encode.
     pub fn new(harmonic: u16, shift_rad: f64) -> Result<Self, ExportError> {
-        if !(harmonic % 4 == 0 && (4..=16).contains(&harmonic)) {
-            return Err(ExportError::Invalid(format!(
-                "shift order {harmonic}: a Trinamic table turns the current only at orders 4, 8, 12, 16 (sine phase)"
-            )));
-        }
+        check_order(u32::from(harmonic))?;
         if !(shift_rad.is_finite() && shift_rad.abs() <= MAX_TRIAL_SHIFT_RAD) {
             return Err(ExportError::Invalid(format!(
                 "shift {shift_rad} rad: its magnitude must be at most {MAX_TRIAL_SHIFT_RAD} rad"
