@@ -53,18 +53,28 @@ fn the_flux_angle_follows_the_true_rotor_angle() {
     assert!((a.flux_wb * 50.0 / 0.3 - 1.0).abs() < 1e-3);
 }
 
-/// Identification of `motor` from a simulated sensorless plan made on `base`.
-fn identify(motor: &Profile, base: &Profile, noise: f64, seed: u64) -> Profile {
+/// The sensorless plan made on `base`, simulated on `motor` with `noise` A of current noise
+/// (run `i` seeded `run_seed(seed, i)`), as the logs the route reads.
+fn plan_logs_with(motor: &Profile, base: &Profile, noise: f64, seed: u64) -> Vec<SensorlessLog> {
     let p = plan(base, &SensorlessPlanOptions::default()).unwrap();
-    let logs: Vec<_> = p
-        .runs
+    p.runs
         .par_iter()
         .enumerate()
         .map(|(i, r)| {
             let rows = simulate_open_loop_run(motor, base, r, noise, run_seed(seed, i as u64)).unwrap();
             SensorlessLog::from_rows(&rows, &r.name)
         })
-        .collect();
+        .collect()
+}
+
+/// [`plan_logs_with`] at 5 mA of noise.
+fn plan_logs(motor: &Profile, base: &Profile, seed: u64) -> Vec<SensorlessLog> {
+    plan_logs_with(motor, base, 0.005, seed)
+}
+
+/// Identification of `motor` from a simulated sensorless plan made on `base`.
+fn identify(motor: &Profile, base: &Profile, noise: f64, seed: u64) -> Profile {
+    let logs = plan_logs_with(motor, base, noise, seed);
     let f = identify_sensorless(&logs, base, &fit_options(base, &[1, 2, 4]), &FluxOptions::default()).unwrap();
     f.model().apply_to(base, Some("sensorless"), "sensorless.toml").unwrap()
 }
@@ -269,16 +279,7 @@ fn an_absurd_current_or_voltage_names_its_line_and_column() {
 fn a_phase_current_gain_error_is_refused_naming_the_ratio() {
     use super::balance::{MAX_CURRENT_IMBALANCE, phase_amplitudes};
     let m = patent();
-    let p = plan(&m, &SensorlessPlanOptions::default()).unwrap();
-    let logs: Vec<SensorlessLog> = p
-        .runs
-        .par_iter()
-        .enumerate()
-        .map(|(i, r)| {
-            let rows = simulate_open_loop_run(&m, &m, r, 0.005, run_seed(1, i as u64)).unwrap();
-            SensorlessLog::from_rows(&rows, &r.name)
-        })
-        .collect();
+    let logs = plan_logs(&m, &m, 1);
     for l in &logs {
         let (a, b) = phase_amplitudes(l, 50).unwrap();
         eprintln!("{}: amplitudes {a:.5} A, {b:.5} A, ratio − 1 = {:.2e}", l.source, a / b - 1.0);
@@ -334,16 +335,7 @@ fn the_sensorless_route_measures_the_flux_shape_from_the_radius() {
         p.motor.resistance_ohm *= 1.1;
     });
     let base = base.unwrap();
-    let p = plan(&base, &SensorlessPlanOptions::default()).unwrap();
-    let logs: Vec<_> = p
-        .runs
-        .par_iter()
-        .enumerate()
-        .map(|(i, r)| {
-            let rows = simulate_open_loop_run(&m, &base, r, 0.005, run_seed(1, i as u64)).unwrap();
-            SensorlessLog::from_rows(&rows, &r.name)
-        })
-        .collect();
+    let logs = plan_logs(&m, &base, 1);
     let f = identify_sensorless(&logs, &base, &fit_options(&base, &[1, 2, 4]), &FluxOptions::default()).unwrap();
     let s = f.shape.clone().unwrap();
     let truth = |n: u16| {
@@ -395,16 +387,7 @@ fn a_flux_correction_the_profile_refuses_keeps_the_bases_shape_and_is_noted() {
             p.motor.inductance_h *= 1.3;
         })
         .unwrap();
-    let p = plan(&base, &SensorlessPlanOptions::default()).unwrap();
-    let logs: Vec<_> = p
-        .runs
-        .par_iter()
-        .enumerate()
-        .map(|(i, r)| {
-            let rows = simulate_open_loop_run(&m, &base, r, 0.005, run_seed(1, i as u64)).unwrap();
-            SensorlessLog::from_rows(&rows, &r.name)
-        })
-        .collect();
+    let logs = plan_logs(&m, &base, 1);
     let f = identify_sensorless(&logs, &base, &fit_options(&base, &[1, 2, 4]), &FluxOptions::default())
         .expect("a refused correction is a note, not an error");
     let shape = f.shape.clone().expect("four logs determine the shape");
