@@ -28,7 +28,7 @@ use stepdamp_sim::profile::DetentTerm;
 
 mod refine;
 mod shift;
-pub use refine::{KlipperRefined, klipper_refine};
+pub use refine::{KlipperRefined, klipper_refine, table_in_use};
 pub use shift::{MAX_TRIAL_SHIFT_RAD, MIN_TRIAL_SHIFT_RAD, ShiftTable, check_order, shift_block, trial_block};
 
 /// The Klipper driver sections that accept `driver_MSLUT0` … `driver_START_SIN90`: the

@@ -120,12 +120,8 @@ pub(crate) fn klipper_motor(section: &str, arg: &str) -> Result<Axis> {
 }
 
 /// A Trinamic wave table given as `none` (Klipper's default table) or a file with its
-/// `driver_MSLUT…` lines (read bounded).
+/// `driver_MSLUT…` lines.
 pub(crate) fn klipper_table_in_use(arg: &str) -> Result<TmcRegisters> {
-    if arg == "none" {
-        return Ok(TmcRegisters::KLIPPER_DEFAULT);
-    }
-    let bytes = prusa::read::read_capped(std::path::Path::new(arg))?;
-    let Ok(text) = String::from_utf8(bytes) else { bail!("{}: not UTF-8 text", escape::line(arg)) };
-    Ok(stepdamp_export::tmc::parse_klipper(&text, &escape::line(arg))?)
+    let path = (arg != "none").then(|| std::path::Path::new(arg));
+    Ok(stepdamp_export::tmc::table_in_use(path)?)
 }

@@ -2,7 +2,7 @@
 //! Python binding run it (`docs/accelerometer.md#refining-a-trinamic-table`): the shift of the
 //! table in use, the step (`stepdamp_accel::klipper::table_step`), the new table and its block.
 
-use super::{ShiftTable, TmcRegisters, check_order, order_parts, shift_block};
+use super::{ShiftTable, TmcRegisters, check_order, order_parts, parse_klipper, shift_block};
 use crate::ExportError;
 use stepdamp_accel::klipper::Log;
 use stepdamp_accel::klipper::table_step::{TableStep, table_step_of_logs};
@@ -37,4 +37,14 @@ pub fn klipper_refine(
     let table = ShiftTable::new(order, step.new_rad)?;
     let block = shift_block(&table, axis, &step.to_string())?;
     Ok(KlipperRefined { step, table, block })
+}
+
+/// The table in use: Klipper's default (`None`), or the `driver_MSLUT…` lines of the file at
+/// `path` (what `accel klipper-refine` wrote), read bounded (`prusa::read::read_capped`).
+pub fn table_in_use(path: Option<&std::path::Path>) -> Result<TmcRegisters, ExportError> {
+    let Some(path) = path else { return Ok(TmcRegisters::KLIPPER_DEFAULT) };
+    let name = crate::escape::line(&path.display().to_string());
+    let bytes = crate::prusa::read::read_capped(path)?;
+    let text = String::from_utf8(bytes).map_err(|_| ExportError::Invalid(format!("{name}: not UTF-8 text")))?;
+    parse_klipper(&text, &name)
 }
