@@ -308,7 +308,7 @@ fn fit_dict<'py>(py: Python<'py>, f: &RippleFit) -> PyResult<Bound<'py, PyDict>>
 
 /// Paths as Python gives them: one, or a list.
 #[derive(FromPyObject)]
-pub enum PathsArg {
+pub(crate) enum PathsArg {
     /// One file (str or os.PathLike).
     #[pyo3(transparent)]
     One(PathBuf),

@@ -7,6 +7,7 @@
 mod accel;
 mod cancel;
 mod ident;
+mod klipper;
 mod profile;
 mod sim;
 mod study;
@@ -52,6 +53,9 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(ident::identify, m)?)?;
     m.add_function(wrap_pyfunction!(accel::read_accel_captures, m)?)?;
     m.add_function(wrap_pyfunction!(accel::identify_accel, m)?)?;
+    m.add_function(wrap_pyfunction!(klipper::klipper_plan, m)?)?;
+    m.add_function(wrap_pyfunction!(klipper::klipper_trial_table, m)?)?;
+    m.add_function(wrap_pyfunction!(klipper::klipper_refine, m)?)?;
     m.add_function(wrap_pyfunction!(study::study_load, m)?)?;
     m.add_function(wrap_pyfunction!(study::study_from_toml, m)?)?;
     m.add_function(wrap_pyfunction!(study::study_info, m)?)?;

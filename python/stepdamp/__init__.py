@@ -21,7 +21,17 @@ from typing import Any, Iterable, Sequence, Union
 import numpy as np
 
 from . import _native
-from ._native import MAX_POINTS, PRESETS, Profile, StepdampError, identify_accel, read_accel_captures
+from ._native import (
+    MAX_POINTS,
+    PRESETS,
+    Profile,
+    StepdampError,
+    identify_accel,
+    klipper_plan,
+    klipper_refine,
+    klipper_trial_table,
+    read_accel_captures,
+)
 
 __all__ = [
     "MAX_POINTS",
@@ -32,6 +42,9 @@ __all__ = [
     "SweepSummary",
     "identify",
     "identify_accel",
+    "klipper_plan",
+    "klipper_refine",
+    "klipper_trial_table",
     "linear_grid",
     "load_spec",
     "read_accel_captures",

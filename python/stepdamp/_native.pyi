@@ -143,6 +143,35 @@ def identify_accel(
     library's RippleFit as a dict), as the CLI's identify --accel; "text" is the report it
     prints and "toml" the file it writes (docs/files.md#identified-ripple-toml)."""
     ...
+def klipper_plan(
+    axis: str,
+    kinematics: str,
+    rotation_distance: float,
+    *,
+    travel_mm: float = 100.0,
+    speed_rev_s: float = 2.0,
+    accel_mm_s2: float = 1000.0,
+    steady_s: float = 3.0,
+) -> Dict[str, Any]:
+    """The moves to log for the Trinamic table step ("moves", each dx_mm, dy_mm, feed_mm_min,
+    motor_revs, kept_s) and "gcode", the text the CLI's accel klipper-plan prints."""
+    ...
+def klipper_trial_table(axis: str, *, harmonic: int = 4, shift_rad: float = 0.12) -> Dict[str, Any]:
+    """The trial table of the CLI's accel klipper-trial: harmonic, shift_rad, achieved_rad,
+    stray_rad, "klipper_trial" (the trial argument, e.g. "4,0.1201,0") and "block" (the file)."""
+    ...
+def klipper_refine(
+    paths: Union[str, PathLike[str], Sequence[Union[str, PathLike[str]]]],
+    motor: Profile,
+    axis: str,
+    *,
+    klipper_trials: Dict[Union[str, PathLike[str]], Tuple[int, float, float]],
+    in_use: Optional[Union[str, PathLike[str]]] = None,
+    periods_per_block: int = 20,
+) -> Dict[str, Any]:
+    """One influence step on a Trinamic table from Klipper logs, as the CLI's accel
+    klipper-refine: the shifts (rad), "pairs", "table", "text" (the report) and "block" (the file)."""
+    ...
 def study_load(path: Union[str, PathLike[str]]) -> str: ...
 def study_from_toml(text: str, origin: str = "<string>", base_dir: str = ".") -> str: ...
 def study_info(json: str) -> Tuple[int, List[str]]: ...
