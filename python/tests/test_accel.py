@@ -165,7 +165,7 @@ def test_mixed_kinds_trials_of_other_files_and_a_missing_current_are_refused(tmp
         stepdamp.read_accel_captures(M973, trial=(4, 0.1, 0.0))
     with pytest.raises(StepdampError, match="the run current is needed"):
         stepdamp.identify_accel([M973], motor, "X")
-    with pytest.raises(StepdampError, match="axis 'Z'"):
+    with pytest.raises(StepdampError, match='axis "Z": '):
         stepdamp.identify_accel([M973], motor, "Z", current_peak_a=0.9)
     with pytest.raises(StepdampError, match="moved the other axis"):
         stepdamp.identify_accel([M973], motor, "Y", current_peak_a=0.9)
