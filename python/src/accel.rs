@@ -18,7 +18,7 @@ use std::ops::Range;
 use std::path::PathBuf;
 use stepdamp_accel::klipper::{KlipperOptions, Log, TrialShift};
 use stepdamp_accel::ripple::file::RippleFile;
-use stepdamp_accel::ripple::{Direction, Interval95, RippleCapture, RippleFit, RippleOptions};
+use stepdamp_accel::ripple::{Direction, Interval95, MM_PER_REV_RANGE, RippleCapture, RippleFit, RippleOptions};
 use stepdamp_accel::sources::{self, Names, SourcesError};
 use stepdamp_accel::{AccelCapture, Axis, Commanded, Reconstruction};
 use stepdamp_export::model::RunCurrent;
@@ -33,7 +33,8 @@ fn axis_of(s: &str) -> PyResult<Axis> {
     match s {
         "X" | "x" => Ok(Axis::X),
         "Y" | "y" => Ok(Axis::Y),
-        o => Err(err(format!("axis '{o}': Prusa phase stepping has axes X and Y"))),
+        // Quoted as Rust's Debug writes it: control characters escaped, on one line.
+        o => Err(err(format!("axis {o:?}: Prusa phase stepping has axes X and Y"))),
     }
 }
 
@@ -233,8 +234,13 @@ pub fn read_accel_captures<'py>(
 /// The run current from the one of `current_peak_a`, `current_rms_a` given.
 fn run_current(peak: Option<f64>, rms: Option<f64>) -> PyResult<RunCurrent> {
     match (peak, rms) {
-        (Some(p), None) => RunCurrent::from_peak(p).map_err(err),
-        (None, Some(r)) => RunCurrent::from_rms(r).map_err(err),
+        // The library's check, the message in Python's names (the library names the CLI's options).
+        (Some(p), None) => {
+            RunCurrent::from_peak(p).map_err(|_| err(format!("current_peak_a {p}: must be finite and > 0 A")))
+        }
+        (None, Some(r)) => {
+            RunCurrent::from_rms(r).map_err(|_| err(format!("current_rms_a {r}: must be finite and > 0 A")))
+        }
         _ => Err(err(
             "the run current is needed: current_peak_a (peak, the current vector) or current_rms_a (RMS per phase), one of the two",
         )),
@@ -325,8 +331,8 @@ pub(crate) enum PathsArg {
 /// motion-analysis logs (gzip); one kind. `motor`: the base profile (Km, Nr, J, friction).
 /// `axis`: `"X"` or `"Y"`. The run current: `current_peak_a` (the current vector) or
 /// `current_rms_a` (per phase), A, one of the two. `mm_per_rev`: belt travel per motor
-/// revolution, mm (the pulley's pitch radius is this / 2π). `periods_per_block`: electrical
-/// periods per lock-in block. `klipper_trials`: `{path: (H, U, PHI)}`, the shift
+/// revolution, mm, in [`MM_PER_REV_RANGE`] (the pulley's pitch radius is this / 2π).
+/// `periods_per_block`: electrical periods per lock-in block. `klipper_trials`: `{path: (H, U, PHI)}`, the shift
 /// `U·sin(H·θe + PHI)` (rad) each Klipper log's driver table carried. `orders`: the orders
 /// to identify (`None`: 1–16 where the sampling rate allows, the CLI's).
 ///
@@ -365,6 +371,12 @@ pub fn identify_accel<'py>(
         klipper_trials.unwrap_or_default().into_iter().map(|(p, t)| (p, trial_shift(t))).collect();
     let axis = axis_of(axis)?;
     let run = run_current(current_peak_a, current_rms_a)?;
+    let (lo, hi) = MM_PER_REV_RANGE;
+    if !(mm_per_rev.is_finite() && (lo..=hi).contains(&mm_per_rev)) {
+        return Err(err(format!(
+            "mm_per_rev {mm_per_rev}: must be in {lo}..={hi} mm (a pulley pitch radius of 1-50 mm)"
+        )));
+    }
     if paths.is_empty() {
         return Err(err("paths: no capture given"));
     }

@@ -165,7 +165,7 @@ def test_mixed_kinds_trials_of_other_files_and_a_missing_current_are_refused(tmp
         stepdamp.read_accel_captures(M973, trial=(4, 0.1, 0.0))
     with pytest.raises(StepdampError, match="the run current is needed"):
         stepdamp.identify_accel([M973], motor, "X")
-    with pytest.raises(StepdampError, match="axis 'Z'"):
+    with pytest.raises(StepdampError, match='axis "Z": '):
         stepdamp.identify_accel([M973], motor, "Z", current_peak_a=0.9)
     with pytest.raises(StepdampError, match="moved the other axis"):
         stepdamp.identify_accel([M973], motor, "Y", current_peak_a=0.9)
@@ -251,3 +251,19 @@ def test_the_example_of_readme_python_runs(session, tmp_path, monkeypatch):
     readme = (Path(__file__).resolve().parents[1] / "README-python.md").read_text()
     block = readme.split("```python\n", 1)[1].split("```", 1)[0]
     exec(compile(block.replace("docs/profiles/", f"{REAL.parent}/"), "README-python.md", "exec"), {})
+
+
+def test_the_accelerometer_example_of_docs_python_runs(session, tmp_path, monkeypatch, capsys):
+    doc = Path(__file__).resolve().parents[2] / "docs" / "python.md"
+    section = doc.read_text().split("\n### Reading and fitting captures\n", 1)[1].split("\n### ", 1)[0]
+    block = section.split("```python\n", 1)[1].split("```", 1)[0]
+    shutil.copy(session, tmp_path / "session.log")
+    monkeypatch.chdir(tmp_path)
+    exec(compile(block.replace("docs/profiles/", f"{REAL.parent}/"), "docs/python.md", "exec"), {})
+    out = capsys.readouterr().out
+    # What the block's comments say it prints: the CLI's report, and the other axis refused.
+    fit = stepdamp.identify_accel([session], Profile.load(REAL), "X", current_peak_a=0.9)
+    assert fit["text"] in out
+    assert (tmp_path / "ripple.toml").read_text() == fit["toml"]
+    refused = [line for line in out.splitlines() if "moved the other axis" in line]
+    assert len(refused) == 1 and refused[0] in block, refused

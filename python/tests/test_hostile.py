@@ -2,8 +2,10 @@
 arguments and a missing optional extra are refused with a Python exception, never an abort
 or a panic (docs/python.md#errors-and-limits)."""
 
+import gzip
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -16,6 +18,7 @@ import pytest
 import stepdamp
 from stepdamp import MAX_POINTS, StepdampError
 
+from test_accel import M973, REAL, _klipper_log
 from test_study import SPEC
 
 
@@ -190,3 +193,107 @@ def pd_concat_columns(frame):
     import pandas as pd
 
     return pd.concat([frame, frame[["t_s"]]], axis=1)
+
+
+# The accelerometer route (docs/python.md#accelerometer-captures): whatever the file, the
+# axis or the trial, a StepdampError with one printable line naming what was wrong.
+CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
+
+
+def _refused(call, *args, match, **kwargs):
+    """Asserts that ``call`` raises StepdampError whose message matches ``match``, is one
+    line and holds no control character (an escape sequence would reach the terminal)."""
+    with pytest.raises(StepdampError) as e:
+        call(*args, **kwargs)
+    msg = str(e.value)
+    assert not CONTROL.search(msg), repr(msg)
+    assert re.search(match, msg), msg
+    return msg
+
+
+def _both(path, match, **kwargs):
+    """`read_accel_captures(path)` and `identify_accel([path], …)` both refuse ``path``."""
+    motor = stepdamp.Profile.load(REAL)
+    _refused(stepdamp.read_accel_captures, path, match=match, **kwargs)
+    _refused(stepdamp.identify_accel, [path], motor, "X", current_peak_a=0.9, match=match)
+
+
+def _gzip(path, payload):
+    with gzip.open(path, "wb") as f:
+        f.write(payload)
+    return path
+
+
+def test_accel_files_that_are_not_captures_are_refused_naming_the_file_on_one_line(tmp_path):
+    empty = tmp_path / "empty.txt"
+    empty.write_bytes(b"")
+    _both(empty, rf"^{re.escape(str(empty))}: no M973/M974 capture")
+    garbage = tmp_path / "garbage.bin"
+    garbage.write_bytes(bytes(range(256)) * 3 + b"\x1b[2J\n")
+    _both(garbage, rf"^{re.escape(str(garbage))}:\d+: `.*`: expected UTF-8 text")
+    huge = tmp_path / "huge.txt"
+    huge.write_bytes(b"0, " + b"1" * 50_000_000)
+    _both(huge, rf"^{re.escape(str(huge))}:1: longer than 1024 bytes")
+    folder = tmp_path / "captures"
+    folder.mkdir()
+    _both(folder, rf"^{re.escape(str(folder))}: cannot read: Is a directory")
+    missing = tmp_path / "missing.txt"
+    _both(missing, rf"^{re.escape(str(missing))}: cannot read: No such file or directory")
+    # A name with a newline and an escape sequence is quoted escaped, as every file name is.
+    odd = tmp_path / "a\nb\x1b[31m.txt"
+    _both(odd, r"a\\u\{a\}b\\u\{1b\}\[31m\.txt: cannot read: No such file")
+
+
+def test_accel_gzip_files_that_are_not_klipper_logs_are_refused_naming_the_file_on_one_line(tmp_path):
+    text = _gzip(tmp_path / "text.gz", b"hello\n\x1b[31m world\n")
+    _both(text, r"text\.gz: record 1: \(framing\) = hello\\u\{a\}\\u\{1b\}\[31m world")
+    noise = _gzip(tmp_path / "noise.gz", bytes(range(256)) * 40 + b"\x03")
+    _both(noise, r"noise\.gz: .*(stepq:stepper_x|configfile|accelerometer)")
+    cut = tmp_path / "cut.gz"
+    _klipper_log(cut)
+    cut.write_bytes(cut.read_bytes()[:-20])
+    _both(cut, r"cut\.gz: after \d+ decompressed bytes: the gzip stream is cut")
+    huge = _gzip(tmp_path / "huge.gz", b"[" + b"1," * 40_000_000 + b"1]\x03")
+    _both(huge, r"huge\.gz: record 1: more than \d+ bytes in one message")
+
+
+def test_a_klipper_log_with_nan_samples_is_refused_not_fitted_into_nan(tmp_path):
+    log = tmp_path / "LOG.json.gz"
+    _klipper_log(log)
+    with gzip.open(log, "rb") as f:
+        records = f.read().split(b"\x03")
+    i = next(i for i, r in enumerate(records) if b"accelerometer:adxl345" in r)
+    records[i] = records[i].replace(b"5.0, 9810.0]", b"NaN, 9810.0]", 1)
+    _gzip(log, b"\x03".join(records))
+    _both(log, r"LOG\.json\.gz: record \d+: ")
+
+
+@pytest.mark.parametrize("trial", [(4, float("nan"), 0.0), (4, 0.1, float("inf")), (4, float("-inf"), 0.0),
+                                   (0, 0.1, 0.0), (17, 0.1, 0.0), (4, 2.0, 0.0)])
+def test_a_klipper_trial_out_of_range_or_not_finite_is_refused_naming_the_log_and_range(tmp_path, trial):
+    log = tmp_path / "LOG.json.gz"
+    _klipper_log(log)
+    ranges = r"harmonic 1\.\.=16, amplitude 0\.\.=1 rad, a finite phase"
+    _refused(stepdamp.read_accel_captures, log, trial=trial, match=rf"LOG\.json\.gz: trial \(H, U, PHI\) = \(\d+, \S+, \S+\): {ranges}$")
+    _refused(stepdamp.identify_accel, [log], stepdamp.Profile.load(REAL), "X", current_peak_a=0.9,
+             klipper_trials={log: trial}, match=rf"LOG\.json\.gz: trial \(H, U, PHI\) = \(\d+, \S+, \S+\): {ranges}$")
+
+
+def test_accel_arguments_out_of_range_are_refused_on_one_line():
+    motor = stepdamp.Profile.load(REAL)
+    for axis in ("Z", "", "\x1b[31mX", "X\n"):
+        _refused(stepdamp.read_accel_captures, M973, axis=axis, match=r'^axis ".*": Prusa phase stepping has axes X and Y$')
+        _refused(stepdamp.identify_accel, [M973], motor, axis, current_peak_a=0.9, match=r'^axis ".*": ')
+    for mm in (float("nan"), float("inf"), 0.0, -32.0):
+        _refused(stepdamp.read_accel_captures, M973, mm_per_rev=mm, match=r"mm_per_rev")
+        _refused(stepdamp.identify_accel, [M973], motor, "X", current_peak_a=0.9, mm_per_rev=mm,
+                 match=r"^mm_per_rev \S+: must be in 6\.3\.\.=314 mm")
+    for current in (float("nan"), float("inf"), 0.0, -1.0):
+        _refused(stepdamp.identify_accel, [M973], motor, "X", current_peak_a=current,
+                 match=r"^current_peak_a \S+: must be finite and > 0 A$")
+        _refused(stepdamp.identify_accel, [M973], motor, "X", current_rms_a=current,
+                 match=r"^current_rms_a \S+: must be finite and > 0 A$")
+    _refused(stepdamp.identify_accel, [], motor, "X", current_peak_a=0.9, match=r"^paths: no capture given$")
+    _refused(stepdamp.identify_accel, [M973], motor, "X", current_peak_a=0.9, periods_per_block=0,
+             match=r"periods_per_block|block")
+    _refused(stepdamp.read_accel_captures, M973, periods_per_rev=0, match=r"periods_per_rev")

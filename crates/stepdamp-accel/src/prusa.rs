@@ -184,7 +184,8 @@ pub fn parse_gcode(text: &str) -> Option<Gcode> {
 /// [`read_captures`] of the file at `path`.
 pub fn read_file(path: &std::path::Path) -> Result<Vec<AccelCapture>, ReadError> {
     let name = path.display().to_string();
-    let f = std::fs::File::open(path).map_err(|e| ReadError::Io { file: name.clone(), message: e.to_string() })?;
+    let shown = || printable(name.as_bytes(), MAX_NAME_CHARS);
+    let f = std::fs::File::open(path).map_err(|e| ReadError::Io { file: shown(), message: e.to_string() })?;
     read_captures(f, &name)
 }
 

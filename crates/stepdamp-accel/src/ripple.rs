@@ -47,6 +47,10 @@ pub const MIN_BLOCKS: usize = 8;
 /// accepts: wider is refused as ill-determined.
 pub const MAX_RELATIVE_HALF_WIDTH: f64 = 0.3;
 
+/// The belt travel per motor revolution (mm) a front end accepts before it derives
+/// [`RippleOptions::pulley_radius_m`] (= mm / 2π / 1000) from it: a pitch radius of 1–50 mm.
+pub const MM_PER_REV_RANGE: (f64, f64) = (6.3, 314.0);
+
 /// What the identification is given besides the captures (SI units; the base profile's values
 /// and the run current).
 #[derive(Debug, Clone, PartialEq)]

@@ -52,7 +52,10 @@ pub fn read_log<R: Read>(input: R, file: &str, o: &KlipperOptions) -> Result<Log
         if !ok {
             return Err(KlipperError::Missing {
                 file: file.clone(),
-                what: format!("trial {t:?}: harmonic 1..=16, amplitude 0..=1 rad, a finite phase"),
+                what: format!(
+                    "trial (H, U, PHI) = ({}, {}, {}): harmonic 1..=16, amplitude 0..=1 rad, a finite phase",
+                    t.harmonic, t.amplitude_rad, t.phase_rad
+                ),
             });
         }
     }

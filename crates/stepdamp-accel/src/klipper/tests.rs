@@ -84,6 +84,23 @@ fn count_and_add_expand_into_steps_as_readlog_does() {
 }
 
 #[test]
+fn a_trial_out_of_range_or_not_finite_is_refused_naming_its_values_and_the_ranges() {
+    let log = gz(&[config("cartesian"), steps(), accel(400)]);
+    for (t, shown) in [
+        ((4, f64::NAN, 0.0), "(4, NaN, 0)"),
+        ((4, 0.1, f64::INFINITY), "(4, 0.1, inf)"),
+        ((0, 0.1, 0.0), "(0, 0.1, 0)"),
+    ] {
+        let (harmonic, amplitude_rad, phase_rad) = t;
+        let o = KlipperOptions { trial: Some(TrialShift { harmonic, amplitude_rad, phase_rad }), ..opts() };
+        let e = read_log(&log[..], "LOG.json.gz", &o).unwrap_err().to_string();
+        let want =
+            format!("LOG.json.gz: trial (H, U, PHI) = {shown}: harmonic 1..=16, amplitude 0..=1 rad, a finite phase");
+        assert_eq!(e, want);
+    }
+}
+
+#[test]
 fn a_cut_gzip_stream_is_refused_with_how_to_stop_the_logger() {
     let bytes = gz(&[config("cartesian"), steps(), accel(100)]);
     let e = read_log(&bytes[..bytes.len() - 30], "t.json.gz", &opts()).unwrap_err().to_string();

@@ -137,6 +137,15 @@ fn a_source_name_with_control_characters_is_shown_escaped() {
 }
 
 #[test]
+fn a_missing_file_whose_name_has_control_characters_is_named_escaped() {
+    let path = std::env::temp_dir().join(format!("stepdamp-missing-{}\n\x1b[2J.txt", std::process::id()));
+    let e = read_file(&path).unwrap_err().to_string();
+    assert_eq!(e.lines().count(), 1, "{e}");
+    assert!(!e.chars().any(char::is_control), "{e}");
+    assert!(e.contains("\\u{a}\\u{1b}[2J.txt: cannot read: "), "{e}");
+}
+
+#[test]
 fn bytes_that_are_not_text_are_refused() {
     let e = read_captures(&b"0, 0.1\n\xff\xfe\n"[..], "b.bin").unwrap_err().to_string();
     assert_eq!(e, "b.bin:2: `\u{fffd}\u{fffd}`: expected UTF-8 text (a host's log)");

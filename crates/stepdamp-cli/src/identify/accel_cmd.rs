@@ -11,14 +11,10 @@ use std::f64::consts::TAU;
 use std::path::PathBuf;
 use stepdamp_accel::Reconstruction;
 use stepdamp_accel::klipper::TrialShift;
-use stepdamp_accel::ripple::RippleOptions;
 use stepdamp_accel::ripple::file::RippleFile;
+use stepdamp_accel::ripple::{MM_PER_REV_RANGE, RippleOptions};
 use stepdamp_accel::sources::{self, Names, Sources};
 use stepdamp_export::prusa::Firmware;
-
-/// The belt travel per revolution the pulley radius follows from (mm): `--mm-per-rev`'s range,
-/// a pitch radius of 1–50 mm.
-const MM_PER_REV_RANGE: (f64, f64) = (6.3, 314.0);
 
 /// Runs `stepdamp identify --accel …`.
 pub(super) fn run_accel_cmd(a: &FitArgs) -> Result<()> {
