@@ -39,6 +39,7 @@ use stepdamp_identify::plan::run_seed;
 use stepdamp_identify::sensorless::flux::FluxOptions;
 use stepdamp_identify::sensorless::log::SensorlessLog;
 use stepdamp_identify::sensorless::plan::{SensorlessPlanOptions, plan};
+use stepdamp_identify::sensorless::turn::is_turn_run;
 use stepdamp_identify::sensorless::{estimate, fit_options, identify, winding};
 use stepdamp_identify::simulate::simulate_open_loop_run;
 
@@ -90,7 +91,9 @@ fn outcome(seed: u64, sweeps: bool) -> Outcome {
     let f = identify(&logs, &base, &fo, &FluxOptions::default()).unwrap();
     let with = base.edited(&base.name, |d| d.motor.flux = f.flux.clone()).unwrap();
     let id = f.model().apply_to(&with, Some("sensorless"), "sensorless.toml").unwrap();
-    let circle_est = estimate(&logs, &winding(&base), &FluxOptions::default()).unwrap();
+    // The circle as before the shape: the quasi-static runs only (no turn runs).
+    let slow: Vec<SensorlessLog> = logs.iter().filter(|l| !is_turn_run(l, &base)).cloned().collect();
+    let circle_est = estimate(&slow, &winding(&base), &FluxOptions::default()).unwrap();
     let circle =
         Model::from_fit(&fit(&circle_est.logs, &fo).unwrap()).apply_to(&base, Some("circle"), "c.toml").unwrap();
     Outcome {

@@ -33,9 +33,10 @@ const NOISE_A: f64 = 0.005;
 
 /// `(re, im)` of harmonic `n`'s phasor `h_n·e^{j·a_n}` in `f` (0 when absent).
 fn phasor(f: &FluxSection, n: u16) -> (f64, f64) {
-    f.harmonics.iter().filter(|h| h.order == n).fold((0.0, 0.0), |a, h| {
-        (a.0 + h.ratio * h.phase_rad.cos(), a.1 + h.ratio * h.phase_rad.sin())
-    })
+    f.harmonics
+        .iter()
+        .filter(|h| h.order == n)
+        .fold((0.0, 0.0), |a, h| (a.0 + h.ratio * h.phase_rad.cos(), a.1 + h.ratio * h.phase_rad.sin()))
 }
 
 /// `X₅ − X₃` of `f`.

@@ -39,6 +39,12 @@ pub struct SensorlessReport {
     /// The `[motor.flux]` section written, when it differs from the base's.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub flux_written: Option<stepdamp_profile::flux::FluxSection>,
+    /// The turn runs, left out of the torque fit.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub turn_logs: Vec<String>,
+    /// The turn runs' last `X₅ − X₃` measurement ([`super::turn`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub turn: Option<super::turn::TurnFit>,
     /// The fit's report, as on the servo route.
     pub fit: FitReport,
 }
@@ -75,7 +81,8 @@ impl SensorlessReport {
             ));
         }
         let flux_written = (f.flux != *base_flux).then(|| f.flux.clone());
-        if flux_written.as_ref().is_some_and(|w| w.harmonics != base_flux.harmonics) {
+        let split = f.turn.as_ref().is_some_and(|t| t.stands_out());
+        if !split && flux_written.as_ref().is_some_and(|w| w.harmonics != base_flux.harmonics) {
             notes.push(format!(
                 "the flux radius gives the third and fifth harmonics' sum only: {:.0} % of it is written to the third, as on measured motors (docs/sensorless.md#the-flux-shape-without-a-sensor); the ripple that grows with the current (open loop and servo) is uncertain by that split",
                 100.0 * super::shape::THIRD_SHARE
@@ -98,6 +105,8 @@ impl SensorlessReport {
             notes,
             flux_shape: f.shape.clone().map(Box::new),
             flux_written,
+            turn_logs: f.turn_logs.clone(),
+            turn: f.turn.clone(),
             fit: FitReport::new(base, f.fit.clone()),
         }
     }
@@ -148,6 +157,28 @@ impl std::fmt::Display for SensorlessReport {
                 write!(f, "; within the noise, left out: {}", out.join(", "))?;
             }
             writeln!(f)?;
+        }
+        if !self.turn_logs.is_empty() {
+            writeln!(
+                f,
+                "turn runs, left out of the torque fit and the radius (docs/sensorless.md#the-split-from-a-fast-run): {}",
+                self.turn_logs.join(", ")
+            )?;
+        }
+        if let Some(t) = &self.turn {
+            writeln!(
+                f,
+                "fifth − third from the turn runs' angle, last pass over {} runs: {:.4} ± {:.4} at {:+.3} rad; {}",
+                t.logs,
+                t.ratio.value,
+                t.ratio.ci95,
+                t.phase_rad.value,
+                if t.stands_out() {
+                    "split onto the third and fifth"
+                } else {
+                    "within the noise, the split left as it was"
+                }
+            )?;
         }
         for n in &self.notes {
             writeln!(f, "note: {n}")?;

@@ -105,9 +105,7 @@ impl ShapeFit {
             return None;
         }
         let nf = n as f64;
-        // Student's t over the 1.96 of `polar_with_ci`, squared onto the variances.
         let t = student_t95(n - 1);
-        let scale = (t / crate::fit::thresholds::Z_95).powi(2) / nf;
         let g: Vec<f64> = per_log.iter().map(|h| -2.0 * h.order2.0).collect();
         let (gm, gv) = mean_var(&g);
         let q: Vec<f64> = per_log.iter().map(|h| h.order2.1).collect();
@@ -115,9 +113,7 @@ impl ShapeFit {
         // The phasor of `cos(4θe + a)` is `e^{ja}`: `c·cos − s·sin` has `(c, −s)`.
         let re: Vec<f64> = per_log.iter().map(|h| h.order4.0).collect();
         let im: Vec<f64> = per_log.iter().map(|h| -h.order4.1).collect();
-        let ((rm, rv), (im_m, iv)) = (mean_var(&re), mean_var(&im));
-        let cov = re.iter().zip(&im).map(|(a, b)| (a - rm) * (b - im_m)).sum::<f64>() / (nf - 1.0);
-        let (sum_ratio, sum_phase_rad) = polar_with_ci(rm, im_m, rv * scale, cov * scale, iv * scale);
+        let (sum_ratio, sum_phase_rad) = mean_phasor(&re, &im);
         Some(ShapeFit {
             phase_b_gain: Estimate { value: gm, ci95: t * (gv / nf).sqrt() },
             sum_ratio,
@@ -198,7 +194,7 @@ impl ShapeFit {
 }
 
 /// Adds `re + j·im` to the phasor `h_n·e^{j·a_n}` of harmonic `order` (created if absent).
-fn add_harmonic(f: &mut FluxSection, order: u16, re: f64, im: f64) {
+pub(super) fn add_harmonic(f: &mut FluxSection, order: u16, re: f64, im: f64) {
     let i = match f.harmonics.iter().position(|h| h.order == order) {
         Some(i) => i,
         None => {
@@ -211,6 +207,18 @@ fn add_harmonic(f: &mut FluxSection, order: u16, re: f64, im: f64) {
     let (x, y) = (h.ratio * c + re, h.ratio * s + im);
     h.ratio = x.hypot(y);
     h.phase_rad = y.atan2(x);
+}
+
+/// The mean of per-log phasors `re + j·im` (at least two) as amplitude and phase, with 95 %
+/// intervals from their spread (Student's t with `n − 1` degrees of freedom).
+pub(super) fn mean_phasor(re: &[f64], im: &[f64]) -> (Estimate, Estimate) {
+    let nf = re.len() as f64;
+    // Student's t over the 1.96 of `polar_with_ci`, squared onto the variances.
+    let t = student_t95(re.len() - 1);
+    let scale = (t / crate::fit::thresholds::Z_95).powi(2) / nf;
+    let ((rm, rv), (im_m, iv)) = (mean_var(re), mean_var(im));
+    let cov = re.iter().zip(im).map(|(a, b)| (a - rm) * (b - im_m)).sum::<f64>() / (nf - 1.0);
+    polar_with_ci(rm, im_m, rv * scale, cov * scale, iv * scale)
 }
 
 /// Mean and sample variance (`n − 1`).
