@@ -81,10 +81,9 @@ impl SensorlessReport {
             ));
         }
         let flux_written = (f.flux != *base_flux).then(|| f.flux.clone());
-        let split = f.turn.as_ref().is_some_and(|t| t.stands_out());
-        if !split && flux_written.as_ref().is_some_and(|w| w.harmonics != base_flux.harmonics) {
+        if f.turn.is_none() && flux_written.as_ref().is_some_and(|w| w.harmonics != base_flux.harmonics) {
             notes.push(format!(
-                "the flux radius gives the third and fifth harmonics' sum only: {:.0} % of it is written to the third, as on measured motors (docs/sensorless.md#the-flux-shape-without-a-sensor); the ripple that grows with the current (open loop and servo) is uncertain by that split",
+                "the flux radius gives the third and fifth harmonics' sum only: {:.0} % of it is written to the third, as on measured motors (no turn runs split it: docs/sensorless.md#the-split-from-a-fast-run); the ripple that grows with the current (open loop and servo) is uncertain by that split",
                 100.0 * super::shape::THIRD_SHARE
             ));
         }
@@ -173,11 +172,7 @@ impl std::fmt::Display for SensorlessReport {
                 t.ratio.value,
                 t.ratio.ci95,
                 t.phase_rad.value,
-                if t.stands_out() {
-                    "split onto the third and fifth"
-                } else {
-                    "within the noise, the split left as it was"
-                }
+                if t.stands_out() { "split onto the third and fifth" } else { "within the noise: the split stands" }
             )?;
         }
         for n in &self.notes {

@@ -13,7 +13,8 @@
 //! sum between the third and the fifth is not observable below resonance: the estimated angle
 //! is the linkage's direction, which the harmonics turn by `Im[(X₅ − X₃)·e^{j4θe}]`,
 //! and in open loop the rotor's load angle and that turn add up to `4·(X₃ + X₅)` — the same
-//! sum. [`THIRD_SHARE`] splits it by what measured motors show.
+//! sum. The plan's turn runs, far above resonance, split it ([`super::turn`]); without them
+//! [`THIRD_SHARE`] splits it by what measured motors show.
 //!
 //! Each log's radius gives its own estimate (a least-squares fit on `θe`); the estimates'
 //! spread over the logs gives the 95 % intervals (Student's t), so a drift of the flux
