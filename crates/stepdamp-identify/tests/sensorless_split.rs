@@ -45,26 +45,9 @@ fn difference(f: &FluxSection) -> (f64, f64) {
     (v.0 - t.0, v.1 - t.1)
 }
 
-/// Least-squares coefficients of `y` on `[1, cos kθ, sin kθ for k in 1, 2, 4, 8]`; returns
-/// the order-4 part as the complex `D` of `Im[D·e^{j4θ}] = D_re·sin 4θ + D_im·cos 4θ`.
+/// The order-4 part as the route measures it.
 fn order4(theta: &[f64], y: &[f64]) -> (f64, f64) {
-    const K: [f64; 4] = [1.0, 2.0, 4.0, 8.0];
-    const P: usize = 9;
-    let mut a = nalgebra::SMatrix::<f64, P, P>::zeros();
-    let mut b = nalgebra::SVector::<f64, P>::zeros();
-    for (&th, &v) in theta.iter().zip(y) {
-        let mut x = nalgebra::SVector::<f64, P>::zeros();
-        x[0] = 1.0;
-        for (i, k) in K.iter().enumerate() {
-            let (s, c) = (k * th).sin_cos();
-            x[1 + 2 * i] = c;
-            x[2 + 2 * i] = s;
-        }
-        a += x * x.transpose();
-        b += x * v;
-    }
-    let s = a.lu().solve(&b).unwrap();
-    (s[6], s[5])
+    stepdamp_identify::sensorless::turn::order4(theta, y).unwrap()
 }
 
 /// The fast run: `factor` × the base's `ω_n` electrical, in direction `sign`.
@@ -103,7 +86,8 @@ fn one(seed: u64, factor: f64) -> Vec<Row> {
     let (m, base) = (real_motor(seed), user_base());
     let p = plan(&base, &SensorlessPlanOptions::default()).unwrap();
     let nr = f64::from(base.motor.pole_pairs);
-    let mut runs = p.runs.clone();
+    // The quasi-static runs, then the fast pair at `factor` (not the plan's own turn runs).
+    let mut runs = p.runs[..4].to_vec();
     runs.push(fast_run(&base, factor, 1.0));
     runs.push(fast_run(&base, factor, -1.0));
     let rows: Vec<_> = runs

@@ -206,6 +206,12 @@ pub struct SensorlessFit {
     /// The logs taken as turn runs ([`turn::is_turn_run`]): left out of the torque fit and
     /// of the radius.
     pub turn_logs: Vec<String>,
+    /// Why turn runs were left out of the split too, one line each naming the log: the
+    /// estimated angle did not follow the command (a stall on the ramp: the estimate's own
+    /// check, or [`turn::followed`]), or their angle could not be estimated.
+    pub turn_left_out: Vec<String>,
+    /// How many of the turn runs' measurements were applied to `flux` (0..=[`TURN_PASSES`]).
+    pub turn_passes: usize,
 }
 
 impl SensorlessFit {
@@ -275,6 +281,8 @@ pub fn identify(
         shape_refused,
         turn: None,
         turn_logs: turns.iter().map(|l| l.source.clone()).collect(),
+        turn_left_out: Vec::new(),
+        turn_passes: 0,
     };
     if turns.len() >= 2 {
         split_by_turn(&mut f, logs, &turns, base, fit, o)?;
@@ -296,6 +304,24 @@ fn split_by_turn(
     fit: &FitOptions,
     o: &FluxOptions,
 ) -> Result<(), SensorlessError> {
+    let nr = f64::from(base.motor.pole_pairs);
+    let w = winding_with(base, &f.flux);
+    let mut kept = Vec::new();
+    for l in turns {
+        match estimate(std::slice::from_ref(l), &w, o) {
+            Ok(e) if turn::followed(l, &e.logs[0].theta_fb_rad, nr) => kept.push(l.clone()),
+            Ok(_) => f.turn_left_out.push(format!(
+                "{}: θe_est − θe_cmd spans more than a quarter electrical period over the steady part: the rotor slipped",
+                l.source
+            )),
+            Err(e) => f.turn_left_out.push(e.to_string()),
+        }
+    }
+    let turns = kept;
+    if turns.len() < 2 {
+        return Ok(());
+    }
+    let turns = &turns[..];
     for _ in 0..TURN_PASSES {
         let Ok(with) = base.edited(&base.name, |d| d.motor.flux = f.flux.clone()) else { break };
         let Ok(id) = f.model().apply_to(&with, None, "turn") else { break };
@@ -309,6 +335,7 @@ fn split_by_turn(
         f.fit = crate::fit::fit(&e.logs, fit)?;
         f.estimated = e;
         f.flux = next;
+        f.turn_passes += 1;
     }
     Ok(())
 }

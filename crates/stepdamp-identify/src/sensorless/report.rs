@@ -44,7 +44,9 @@ pub struct SensorlessReport {
     pub turn_logs: Vec<String>,
     /// The turn runs' last `X₅ − X₃` measurement ([`super::turn`]).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub turn: Option<super::turn::TurnFit>,
+    pub turn: Option<Box<super::turn::TurnFit>>,
+    /// How many turn-run measurements were applied to the section written.
+    pub turn_passes: usize,
     /// The fit's report, as on the servo route.
     pub fit: FitReport,
 }
@@ -81,7 +83,15 @@ impl SensorlessReport {
             ));
         }
         let flux_written = (f.flux != *base_flux).then(|| f.flux.clone());
-        if f.turn.is_none() && flux_written.as_ref().is_some_and(|w| w.harmonics != base_flux.harmonics) {
+        for why in &f.turn_left_out {
+            notes.push(format!(
+                "turn run left out of the split: {why} (run it again with a slower ramp or more current)"
+            ));
+        }
+        if f.turn_passes == 0
+            && f.turn.is_none()
+            && flux_written.as_ref().is_some_and(|w| w.harmonics != base_flux.harmonics)
+        {
             notes.push(format!(
                 "the flux radius gives the third and fifth harmonics' sum only: {:.0} % of it is written to the third, as on measured motors (no turn runs split it: docs/sensorless.md#the-split-from-a-fast-run); the ripple that grows with the current (open loop and servo) is uncertain by that split",
                 100.0 * super::shape::THIRD_SHARE
@@ -105,7 +115,8 @@ impl SensorlessReport {
             flux_shape: f.shape.clone().map(Box::new),
             flux_written,
             turn_logs: f.turn_logs.clone(),
-            turn: f.turn.clone(),
+            turn: f.turn.clone().map(Box::new),
+            turn_passes: f.turn_passes,
             fit: FitReport::new(base, f.fit.clone()),
         }
     }
@@ -165,15 +176,24 @@ impl std::fmt::Display for SensorlessReport {
             )?;
         }
         if let Some(t) = &self.turn {
-            writeln!(
+            write!(
                 f,
-                "fifth − third from the turn runs' angle, last pass over {} runs: {:.4} ± {:.4} at {:+.3} rad; {}",
-                t.logs,
-                t.ratio.value,
-                t.ratio.ci95,
-                t.phase_rad.value,
-                if t.stands_out() { "split onto the third and fifth" } else { "within the noise: the split stands" }
+                "fifth − third from the turn runs' angle, over {} runs: {:.4} ± {:.4} at {:+.3} rad, ",
+                t.logs, t.ratio.value, t.ratio.ci95, t.phase_rad.value
             )?;
+            match self.turn_passes {
+                0 => writeln!(
+                    f,
+                    "within the noise of the {:.0} % split, which stands",
+                    100.0 * super::shape::THIRD_SHARE
+                )?,
+                n => writeln!(
+                    f,
+                    "the last of {} measurements; split onto the third and fifth in {n} pass(es){}",
+                    super::TURN_PASSES,
+                    if t.stands_out() { "" } else { ", what is left within the noise" }
+                )?,
+            }
         }
         for n in &self.notes {
             writeln!(f, "note: {n}")?;

@@ -37,6 +37,30 @@ const ORDERS: [f64; 4] = [1.0, 2.0, 4.0, 8.0];
 /// Number of regressors.
 const P: usize = 1 + 2 * ORDERS.len();
 
+/// The least-squares coefficients of `y` on the regressors above (a constant, then
+/// `cos kθe`, `sin kθe` for `k` in [`ORDERS`]) at the angles `theta_e_rad` (electrical rad,
+/// the same length); `None` when the samples do not determine them (fewer than a few per
+/// regressor, or a singular design).
+pub(super) fn fit_orders(theta_e_rad: &[f64], y: &[f64]) -> Option<SVector<f64, P>> {
+    if y.len() != theta_e_rad.len() || y.len() < 10 * P {
+        return None;
+    }
+    let mut a = SMatrix::<f64, P, P>::zeros();
+    let mut b = SVector::<f64, P>::zeros();
+    for (&th, &r) in theta_e_rad.iter().zip(y) {
+        let mut x = SVector::<f64, P>::zeros();
+        x[0] = 1.0;
+        for (i, k) in ORDERS.iter().enumerate() {
+            let (s, c) = (k * th).sin_cos();
+            x[1 + 2 * i] = c;
+            x[2 + 2 * i] = s;
+        }
+        a += x * x.transpose();
+        b += x * r;
+    }
+    a.lu().solve(&b)
+}
+
 /// One log's radius harmonics per unit of its mean radius.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RadiusHarmonics {
@@ -53,23 +77,7 @@ impl RadiusHarmonics {
     /// the angles `theta_e_rad` (the same length); `None` when the samples do not
     /// determine it (fewer than a few per regressor, or a singular design).
     pub fn of(theta_e_rad: &[f64], radius: &[f64]) -> Option<Self> {
-        if radius.len() != theta_e_rad.len() || radius.len() < 10 * P {
-            return None;
-        }
-        let mut a = SMatrix::<f64, P, P>::zeros();
-        let mut b = SVector::<f64, P>::zeros();
-        for (&th, &r) in theta_e_rad.iter().zip(radius) {
-            let mut x = SVector::<f64, P>::zeros();
-            x[0] = 1.0;
-            for (i, k) in ORDERS.iter().enumerate() {
-                let (s, c) = (k * th).sin_cos();
-                x[1 + 2 * i] = c;
-                x[2 + 2 * i] = s;
-            }
-            a += x * x.transpose();
-            b += x * r;
-        }
-        let sol = a.lu().solve(&b)?;
+        let sol = fit_orders(theta_e_rad, radius)?;
         let mean = sol[0];
         (mean.is_finite() && mean > 0.0 && sol.iter().all(|v| v.is_finite())).then(|| RadiusHarmonics {
             samples: radius.len(),

@@ -17,10 +17,9 @@
 use super::Estimated;
 use super::log::SensorlessLog;
 use super::plan::natural_rad_s;
-use super::shape::{add_harmonic, mean_phasor};
+use super::shape::{add_harmonic, fit_orders, mean_phasor};
 use crate::emf::{AMPLITUDE_TEST, stands_out};
 use crate::fit::Estimate;
-use nalgebra::{SMatrix, SVector};
 use stepdamp_profile::Profile;
 use stepdamp_profile::flux::FluxSection;
 
@@ -31,6 +30,12 @@ pub const TURN_MIN_SPEED: f64 = 1.0;
 
 /// Share of a turn run's steady part left out at its start (the ramp's transient).
 pub const SETTLE_FRACTION: f64 = 0.2;
+
+/// The widest spread of `θe_est − θe_cmd` (electrical rad) over a turn run's steady part
+/// that is taken as the rotor following the command: a quarter of an electrical period. A
+/// rotor that stalled on the ramp through the open-loop resonances falls behind by whole
+/// periods; its order-4 error would read as a large, wrong `X₅ − X₃`.
+pub const MAX_FOLLOW_SPREAD_RAD: f64 = core::f64::consts::FRAC_PI_2;
 
 /// The commanded speed at the end of `log` (rad/s, mechanical) and the first sample from
 /// which the command runs at it (within 0.1 %); `None` at rest or with fewer than 3 samples.
@@ -58,28 +63,11 @@ pub fn is_turn_run(log: &SensorlessLog, base: &Profile) -> bool {
 }
 
 /// The order-4 part of `y` against `theta` (electrical rad) as the `D` of
-/// `Im[D·e^{j4θ}] = D_re·sin 4θ + D_im·cos 4θ`, from a least-squares fit on a constant and
-/// `cos kθ`, `sin kθ` for `k` = 1, 2, 4, 8; `None` when the samples do not determine it.
-fn order4(theta: &[f64], y: &[f64]) -> Option<(f64, f64)> {
-    const K: [f64; 4] = [1.0, 2.0, 4.0, 8.0];
-    const P: usize = 1 + 2 * K.len();
-    if theta.len() < 10 * P {
-        return None;
-    }
-    let mut a = SMatrix::<f64, P, P>::zeros();
-    let mut b = SVector::<f64, P>::zeros();
-    for (&th, &v) in theta.iter().zip(y) {
-        let mut x = SVector::<f64, P>::zeros();
-        x[0] = 1.0;
-        for (i, k) in K.iter().enumerate() {
-            let (s, c) = (k * th).sin_cos();
-            x[1 + 2 * i] = c;
-            x[2 + 2 * i] = s;
-        }
-        a += x * x.transpose();
-        b += x * v;
-    }
-    let s = a.lu().solve(&b)?;
+/// `Im[D·e^{j4θ}] = D_re·sin 4θ + D_im·cos 4θ`, from the least-squares fit of the radius
+/// (a constant and `cos kθ`, `sin kθ` for `k` = 1, 2, 4, 8); `None` when the samples do not
+/// determine it.
+pub fn order4(theta: &[f64], y: &[f64]) -> Option<(f64, f64)> {
+    let s = fit_orders(theta, y)?;
     (s[5].is_finite() && s[6].is_finite()).then_some((s[6], s[5]))
 }
 
@@ -105,6 +93,25 @@ pub struct TurnFit {
     pub logs: usize,
 }
 
+/// The steady part of a turn run as `(θe_est, θe_est − θe_cmd)`, electrical rad, with its
+/// commanded mechanical speed (rad/s); `None` at rest.
+fn steady_error(log: &SensorlessLog, theta_fb_rad: &[f64], nr: f64) -> Option<(Vec<f64>, Vec<f64>, f64)> {
+    let (w, k) = steady_speed(log)?;
+    let k0 = k + (SETTLE_FRACTION * (log.len() - k) as f64) as usize;
+    let th: Vec<f64> = theta_fb_rad.get(k0..)?.iter().map(|t| t * nr).collect();
+    let e: Vec<f64> = th.iter().zip(&log.theta_cmd_rad[k0..]).map(|(a, c)| a - c * nr).collect();
+    Some((th, e, w))
+}
+
+/// Whether the estimated angle of turn run `log` (its mechanical angle `theta_fb_rad`, rad,
+/// sample for sample) followed the command over the steady part: `θe_est − θe_cmd` spans at
+/// most [`MAX_FOLLOW_SPREAD_RAD`] there. `false` also when the run has no steady part.
+pub fn followed(log: &SensorlessLog, theta_fb_rad: &[f64], nr: f64) -> bool {
+    let Some((_, e, _)) = steady_error(log, theta_fb_rad, nr) else { return false };
+    let (lo, hi) = e.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| (l.min(v), h.max(v)));
+    !e.is_empty() && hi - lo <= MAX_FOLLOW_SPREAD_RAD
+}
+
 impl TurnFit {
     /// The measurement from turn runs `logs` and their angles `est` (the same order),
     /// with the rotor's motion predicted from `id` (the identified profile); `None` with
@@ -113,10 +120,7 @@ impl TurnFit {
         let nr = f64::from(id.motor.pole_pairs);
         let (mut re, mut im) = (Vec::new(), Vec::new());
         for (log, run) in logs.iter().zip(&est.logs) {
-            let Some((w, k)) = steady_speed(log) else { continue };
-            let k0 = k + (SETTLE_FRACTION * (log.len() - k) as f64) as usize;
-            let th: Vec<f64> = run.theta_fb_rad[k0..].iter().map(|t| t * nr).collect();
-            let e: Vec<f64> = th.iter().zip(&log.theta_cmd_rad[k0..]).map(|(a, c)| a - c * nr).collect();
+            let Some((th, e, w)) = steady_error(log, &run.theta_fb_rad, nr) else { continue };
             let (Some(d), Some(y)) = (order4(&th, &e), rotor_motion(id, w.abs() * nr)) else { continue };
             re.push(d.0 - y.0);
             im.push(d.1 - y.1);
@@ -189,5 +193,40 @@ mod tests {
         assert_eq!(t.corrected(&FluxSection::default()), FluxSection::default());
         let quiet = TurnFit { ratio: Estimate { value: 0.004, ci95: 0.004 }, ..t };
         assert_eq!(quiet.corrected(&f), f);
+    }
+
+    /// A log at constant commanded speed: 2000 samples at 10 kHz, 1 rad/s mechanical.
+    fn steady_log() -> SensorlessLog {
+        let t: Vec<f64> = (0..2000).map(|k| f64::from(k) * 1e-4).collect();
+        SensorlessLog {
+            source: "steady".into(),
+            theta_cmd_rad: t.clone(),
+            i_a_a: vec![0.0; t.len()],
+            i_b_a: vec![0.0; t.len()],
+            v_a_v: vec![0.0; t.len()],
+            v_b_v: vec![0.0; t.len()],
+            t_s: t,
+            ignored_columns: Vec::new(),
+        }
+    }
+
+    /// An angle that lags the command by a constant and ripples follows it; one that falls
+    /// behind by half an electrical period over the log, or that has fewer
+    /// samples than the log, does not.
+    #[test]
+    fn a_rotor_that_falls_behind_the_command_has_not_followed_it() {
+        let (l, nr) = (steady_log(), 50.0);
+        let lagging: Vec<f64> =
+            l.theta_cmd_rad.iter().map(|c| c - 0.3 / nr + 0.2 / nr * (4.0 * nr * c).sin()).collect();
+        assert!(followed(&l, &lagging, nr));
+        let n = l.len() as f64;
+        let slipping: Vec<f64> = l
+            .theta_cmd_rad
+            .iter()
+            .enumerate()
+            .map(|(k, c)| c - 0.3 / nr - (std::f64::consts::TAU / 2.0) / nr * k as f64 / n)
+            .collect();
+        assert!(!followed(&l, &slipping, nr));
+        assert!(!followed(&l, &lagging[..10], nr));
     }
 }
