@@ -9,6 +9,8 @@
 //!    angle is continuous (no quantisation correction, no stuck-sample detection on
 //!    encoder edges) and the smoothing corner follows the harmonics only.
 //! 4. [`plan`](mod@plan): the runs to record, with reasons.
+//! 5. [`turn`]: the plan's turn runs, far above the resonance, split the flux's third from
+//!    its fifth; the torque fit leaves them out.
 //!
 //! Before 2., [`balance`] refuses logs whose phase currents differ in amplitude (a sensor's
 //! gain error, which the fit would report as detent order 2).
@@ -24,6 +26,7 @@ pub mod log;
 pub mod plan;
 pub mod report;
 pub mod shape;
+pub mod turn;
 
 use crate::fit::FitOptions;
 use crate::log::{IqSource, RunLog};
@@ -193,8 +196,22 @@ pub struct SensorlessFit {
     /// Why a correction of the shape was not applied, if one was refused.
     pub shape_refused: Option<String>,
     /// The flux section the angles and torques were computed with: the base's, corrected by
-    /// [`shape::ShapeFit::corrected`] when something stood out.
+    /// [`shape::ShapeFit::corrected`] when something stood out, then by
+    /// [`turn::TurnFit::corrected`].
     pub flux: stepdamp_profile::flux::FluxSection,
+    /// The last measurement of the turn runs' `X₅ − X₃` against the shape their angles were
+    /// estimated with; when it stood out, its correction is in `flux` (`None`: fewer than two
+    /// turn runs, or their measurement failed).
+    pub turn: Option<turn::TurnFit>,
+    /// The logs taken as turn runs ([`turn::is_turn_run`]): left out of the torque fit and
+    /// of the radius.
+    pub turn_logs: Vec<String>,
+    /// Why turn runs were left out of the split too, one line each naming the log: the
+    /// estimated angle did not follow the command (a stall on the ramp: the estimate's own
+    /// check, or [`turn::followed`]), or their angle could not be estimated.
+    pub turn_left_out: Vec<String>,
+    /// How many of the turn runs' measurements were applied to `flux` (0..=[`TURN_PASSES`]).
+    pub turn_passes: usize,
 }
 
 impl SensorlessFit {
@@ -223,6 +240,11 @@ pub fn identify(
     o: &FluxOptions,
 ) -> Result<SensorlessFit, SensorlessError> {
     balance::check(logs, base.motor.pole_pairs)?;
+    let (turns, rest): (Vec<SensorlessLog>, Vec<SensorlessLog>) =
+        logs.iter().cloned().partition(|l| turn::is_turn_run(l, base));
+    // Only turn runs: nothing else to fit, so they are fitted as ordinary runs.
+    let (turns, logs) = if rest.is_empty() { (Vec::new(), turns) } else { (turns, rest) };
+    let logs = &logs[..];
     let mut flux = base.motor.flux.clone();
     let mut estimated = estimate(logs, &winding_with(base, &flux), o)?;
     let mut pass = shape::ShapeFit::of(&estimated.radius);
@@ -250,8 +272,72 @@ pub fn identify(
         }
     }
     let shape = pass.map(|last| last.total_since(&base.motor.flux, &flux));
-    let fit = crate::fit::fit(&estimated.logs, fit)?;
-    Ok(SensorlessFit { estimated, fit, shape, flux, shape_refused })
+    let fitted = crate::fit::fit(&estimated.logs, fit)?;
+    let mut f = SensorlessFit {
+        estimated,
+        fit: fitted,
+        shape,
+        flux,
+        shape_refused,
+        turn: None,
+        turn_logs: turns.iter().map(|l| l.source.clone()).collect(),
+        turn_left_out: Vec::new(),
+        turn_passes: 0,
+    };
+    if turns.len() >= 2 {
+        split_by_turn(&mut f, logs, &turns, base, fit, o)?;
+    }
+    Ok(f)
+}
+
+/// Passes of the split by the turn runs: the first measures `X₅ − X₃`, the second what is
+/// left with the rotor's motion predicted from the corrected shape's ripple.
+pub const TURN_PASSES: usize = 2;
+
+/// Corrects `f`'s third and fifth with the turn runs `turns` ([`turn`]): measures, splits,
+/// estimates `logs` again and fits them, at most [`TURN_PASSES`] times.
+fn split_by_turn(
+    f: &mut SensorlessFit,
+    logs: &[SensorlessLog],
+    turns: &[SensorlessLog],
+    base: &Profile,
+    fit: &FitOptions,
+    o: &FluxOptions,
+) -> Result<(), SensorlessError> {
+    let nr = f64::from(base.motor.pole_pairs);
+    let w = winding_with(base, &f.flux);
+    let mut kept = Vec::new();
+    for l in turns {
+        match estimate(std::slice::from_ref(l), &w, o) {
+            Ok(e) if turn::followed(l, &e.logs[0].theta_fb_rad, nr) => kept.push(l.clone()),
+            Ok(_) => f.turn_left_out.push(format!(
+                "{}: θe_est − θe_cmd spans more than a quarter electrical period over the steady part: the rotor slipped",
+                l.source
+            )),
+            Err(e) => f.turn_left_out.push(e.to_string()),
+        }
+    }
+    let turns = kept;
+    if turns.len() < 2 {
+        return Ok(());
+    }
+    let turns = &turns[..];
+    for _ in 0..TURN_PASSES {
+        let Ok(with) = base.edited(&base.name, |d| d.motor.flux = f.flux.clone()) else { break };
+        let Ok(id) = f.model().apply_to(&with, None, "turn") else { break };
+        let Ok(est) = estimate(turns, &winding_with(base, &f.flux), o) else { break };
+        f.turn = turn::TurnFit::of(turns, &est, &id);
+        let Some(next) = f.turn.as_ref().map(|t| t.corrected(&f.flux)).filter(|n| *n != f.flux) else { break };
+        if base.edited(&base.name, |d| d.motor.flux = next.clone()).is_err() {
+            break;
+        }
+        let Ok(e) = estimate(logs, &winding_with(base, &next), o) else { break };
+        f.fit = crate::fit::fit(&e.logs, fit)?;
+        f.estimated = e;
+        f.flux = next;
+        f.turn_passes += 1;
+    }
+    Ok(())
 }
 
 #[cfg(all(test, feature = "simulate"))]

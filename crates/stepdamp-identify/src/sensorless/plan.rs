@@ -16,7 +16,12 @@
 //!    trims `R` (the flux integral's largest error source at low speed,
 //!    [`super::flux`]), then a ramp at constant acceleration
 //!    ([`SensorlessPlanOptions::ramp_s`]).
-//! 4. **Duration**: [`SensorlessPlanOptions::electrical_periods`] electrical periods of
+//! 4. **A turn pair** (when [`SensorlessPlanOptions::turn_speed_factor`] is not 0): both
+//!    directions at that multiple of `ω_n` (electrical), where the rotor cannot follow the
+//!    order-4 torques, so the estimated angle's order-4 error is the flux's own turn
+//!    `Im[(X₅ − X₃)·e^{j4θe}]`: it splits the third from the fifth ([`super::turn`]). The
+//!    torque fit leaves these runs out; their ramp is twice [`SensorlessPlanOptions::ramp_s`].
+//! 5. **Duration**: [`SensorlessPlanOptions::electrical_periods`] electrical periods of
 //!    steady running, at least [`SensorlessPlanOptions::min_steady_s`].
 
 use crate::plan::{PlanError, PlannedRun, RunDrive};
@@ -38,6 +43,9 @@ pub struct SensorlessPlanOptions {
     pub standstill_s: f64,
     /// Ramp from rest to the speed, s.
     pub ramp_s: f64,
+    /// Electrical speed of the turn runs as a multiple of the base's `ω_n` (0: no turn runs;
+    /// otherwise at least [`super::turn::TURN_MIN_SPEED`]).
+    pub turn_speed_factor: f64,
 }
 
 impl Default for SensorlessPlanOptions {
@@ -49,6 +57,7 @@ impl Default for SensorlessPlanOptions {
             min_steady_s: 1.0,
             standstill_s: 0.2,
             ramp_s: 0.2,
+            turn_speed_factor: 2.0,
         }
     }
 }
@@ -98,12 +107,24 @@ impl std::fmt::Display for SensorlessPlan {
             f,
             "one current: the flux circle's radius gives the phase gain and the sum of the third and fifth flux harmonics; a second current would show the same sum, not its split (docs/sensorless.md#the-flux-shape-without-a-sensor)"
         )?;
+        if self.options.turn_speed_factor > 0.0 {
+            writeln!(
+                f,
+                "the turn runs split that sum: far above the resonance the angle's order-4 error is the flux's X5 − X3 (docs/sensorless.md#the-split-from-a-fast-run)"
+            )?;
+        }
         write!(
             f,
             "total {:.1} s of logging; record t_s, theta_cmd_rad, i_a_a, i_b_a, v_a_v, v_b_v every control period from t = 0 (v: the mean winding voltage actually applied over the period)",
             self.total_s()
         )
     }
+}
+
+/// The open-loop natural frequency `ω_n = √(Km·I_hold·Nr/J)` of a profile, electrical rad/s.
+pub fn natural_rad_s(base: &Profile) -> f64 {
+    let m = &base.motor;
+    (m.km_nm_per_a * base.drive.holding_current_a * f64::from(m.pole_pairs) / m.inertia_kg_m2).sqrt()
 }
 
 /// Makes the sensorless plan for a base profile.
@@ -122,10 +143,13 @@ pub fn plan(base: &Profile, o: &SensorlessPlanOptions) -> Result<SensorlessPlan,
             return bad(format!("{what} {v} s: must be in {min}..=60 s"));
         }
     }
+    let f = o.turn_speed_factor;
+    if !(f == 0.0 || (super::turn::TURN_MIN_SPEED..=5.0).contains(&f)) {
+        return bad(format!("turn speed factor {f}: must be 0 or in {}..=5", super::turn::TURN_MIN_SPEED));
+    }
     let Some(&kmax) = o.orders.iter().max() else { return bad("no harmonic orders".into()) };
-    let m = &base.motor;
-    let nr = f64::from(m.pole_pairs);
-    let wn = (m.km_nm_per_a * base.drive.holding_current_a * nr / m.inertia_kg_m2).sqrt();
+    let nr = f64::from(base.motor.pole_pairs);
+    let wn = natural_rad_s(base);
     let w_hi = o.resonance_fraction * wn / (f64::from(kmax) * nr);
     let w_lo = 0.5 * w_hi;
     let steady = |w: f64| (o.electrical_periods * TAU / (nr * w)).max(o.min_steady_s);
@@ -149,6 +173,25 @@ pub fn plan(base: &Profile, o: &SensorlessPlanOptions) -> Result<SensorlessPlan,
                     k_hz * TAU / wn,
                     if sign > 0.0 { "forward" } else { "reverse: separates Fs·sgn(ω) from a constant torque" },
                     st * nr * w / TAU
+                ),
+            });
+        }
+    }
+    if f > 0.0 {
+        let w = f * wn / nr;
+        for (dir, sign) in [("fwd", 1.0), ("rev", -1.0)] {
+            let (ramp, st) = (2.0 * o.ramp_s, steady(w));
+            runs.push(PlannedRun {
+                name: format!("sensorless-{}-{dir}-{w:.3}rad_s", runs.len() + 1),
+                drive: RunDrive::OpenLoop { holding_current_a: base.drive.holding_current_a },
+                speed_rad_s: sign * w,
+                dwell_s: o.standstill_s,
+                ramp_s: ramp,
+                duration_s: o.standstill_s + ramp + st,
+                reason: format!(
+                    "turn: harmonic 4 at {:.1} × the natural frequency, too fast for the rotor to follow, so the angle's order-4 error is the flux's X5 − X3 (splits the third from the fifth; left out of the torque fit); {}",
+                    4.0 * f,
+                    if sign > 0.0 { "forward" } else { "reverse" }
                 ),
             });
         }

@@ -39,6 +39,14 @@ pub struct SensorlessReport {
     /// The `[motor.flux]` section written, when it differs from the base's.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub flux_written: Option<stepdamp_profile::flux::FluxSection>,
+    /// The turn runs, left out of the torque fit.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub turn_logs: Vec<String>,
+    /// The turn runs' last `X₅ − X₃` measurement ([`super::turn`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub turn: Option<Box<super::turn::TurnFit>>,
+    /// How many turn-run measurements were applied to the section written.
+    pub turn_passes: usize,
     /// The fit's report, as on the servo route.
     pub fit: FitReport,
 }
@@ -75,9 +83,17 @@ impl SensorlessReport {
             ));
         }
         let flux_written = (f.flux != *base_flux).then(|| f.flux.clone());
-        if flux_written.as_ref().is_some_and(|w| w.harmonics != base_flux.harmonics) {
+        for why in &f.turn_left_out {
             notes.push(format!(
-                "the flux radius gives the third and fifth harmonics' sum only: {:.0} % of it is written to the third, as on measured motors (docs/sensorless.md#the-flux-shape-without-a-sensor); the ripple that grows with the current (open loop and servo) is uncertain by that split",
+                "turn run left out of the split: {why} (run it again with a slower ramp or more current)"
+            ));
+        }
+        if f.turn_passes == 0
+            && f.turn.is_none()
+            && flux_written.as_ref().is_some_and(|w| w.harmonics != base_flux.harmonics)
+        {
+            notes.push(format!(
+                "the flux radius gives the third and fifth harmonics' sum only: {:.0} % of it is written to the third, as on measured motors (no turn runs split it: docs/sensorless.md#the-split-from-a-fast-run); the ripple that grows with the current (open loop and servo) is uncertain by that split",
                 100.0 * super::shape::THIRD_SHARE
             ));
         }
@@ -98,6 +114,9 @@ impl SensorlessReport {
             notes,
             flux_shape: f.shape.clone().map(Box::new),
             flux_written,
+            turn_logs: f.turn_logs.clone(),
+            turn: f.turn.clone().map(Box::new),
+            turn_passes: f.turn_passes,
             fit: FitReport::new(base, f.fit.clone()),
         }
     }
@@ -148,6 +167,33 @@ impl std::fmt::Display for SensorlessReport {
                 write!(f, "; within the noise, left out: {}", out.join(", "))?;
             }
             writeln!(f)?;
+        }
+        if !self.turn_logs.is_empty() {
+            writeln!(
+                f,
+                "turn runs, left out of the torque fit and the radius (docs/sensorless.md#the-split-from-a-fast-run): {}",
+                self.turn_logs.join(", ")
+            )?;
+        }
+        if let Some(t) = &self.turn {
+            write!(
+                f,
+                "fifth − third from the turn runs' angle, over {} runs: {:.4} ± {:.4} at {:+.3} rad, ",
+                t.logs, t.ratio.value, t.ratio.ci95, t.phase_rad.value
+            )?;
+            match self.turn_passes {
+                0 => writeln!(
+                    f,
+                    "within the noise of the {:.0} % split, which stands",
+                    100.0 * super::shape::THIRD_SHARE
+                )?,
+                n => writeln!(
+                    f,
+                    "the last of {} measurements; split onto the third and fifth in {n} pass(es){}",
+                    super::TURN_PASSES,
+                    if t.stands_out() { "" } else { ", what is left within the noise" }
+                )?,
+            }
         }
         for n in &self.notes {
             writeln!(f, "note: {n}")?;

@@ -13,7 +13,8 @@
 //! sum between the third and the fifth is not observable below resonance: the estimated angle
 //! is the linkage's direction, which the harmonics turn by `Im[(X₅ − X₃)·e^{j4θe}]`,
 //! and in open loop the rotor's load angle and that turn add up to `4·(X₃ + X₅)` — the same
-//! sum. [`THIRD_SHARE`] splits it by what measured motors show.
+//! sum. The plan's turn runs, far above resonance, split it ([`super::turn`]); without them
+//! [`THIRD_SHARE`] splits it by what measured motors show.
 //!
 //! Each log's radius gives its own estimate (a least-squares fit on `θe`); the estimates'
 //! spread over the logs gives the 95 % intervals (Student's t), so a drift of the flux
@@ -36,6 +37,30 @@ const ORDERS: [f64; 4] = [1.0, 2.0, 4.0, 8.0];
 /// Number of regressors.
 const P: usize = 1 + 2 * ORDERS.len();
 
+/// The least-squares coefficients of `y` on the regressors above (a constant, then
+/// `cos kθe`, `sin kθe` for `k` in [`ORDERS`]) at the angles `theta_e_rad` (electrical rad,
+/// the same length); `None` when the samples do not determine them (fewer than a few per
+/// regressor, or a singular design).
+pub(super) fn fit_orders(theta_e_rad: &[f64], y: &[f64]) -> Option<SVector<f64, P>> {
+    if y.len() != theta_e_rad.len() || y.len() < 10 * P {
+        return None;
+    }
+    let mut a = SMatrix::<f64, P, P>::zeros();
+    let mut b = SVector::<f64, P>::zeros();
+    for (&th, &r) in theta_e_rad.iter().zip(y) {
+        let mut x = SVector::<f64, P>::zeros();
+        x[0] = 1.0;
+        for (i, k) in ORDERS.iter().enumerate() {
+            let (s, c) = (k * th).sin_cos();
+            x[1 + 2 * i] = c;
+            x[2 + 2 * i] = s;
+        }
+        a += x * x.transpose();
+        b += x * r;
+    }
+    a.lu().solve(&b)
+}
+
 /// One log's radius harmonics per unit of its mean radius.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RadiusHarmonics {
@@ -52,23 +77,7 @@ impl RadiusHarmonics {
     /// the angles `theta_e_rad` (the same length); `None` when the samples do not
     /// determine it (fewer than a few per regressor, or a singular design).
     pub fn of(theta_e_rad: &[f64], radius: &[f64]) -> Option<Self> {
-        if radius.len() != theta_e_rad.len() || radius.len() < 10 * P {
-            return None;
-        }
-        let mut a = SMatrix::<f64, P, P>::zeros();
-        let mut b = SVector::<f64, P>::zeros();
-        for (&th, &r) in theta_e_rad.iter().zip(radius) {
-            let mut x = SVector::<f64, P>::zeros();
-            x[0] = 1.0;
-            for (i, k) in ORDERS.iter().enumerate() {
-                let (s, c) = (k * th).sin_cos();
-                x[1 + 2 * i] = c;
-                x[2 + 2 * i] = s;
-            }
-            a += x * x.transpose();
-            b += x * r;
-        }
-        let sol = a.lu().solve(&b)?;
+        let sol = fit_orders(theta_e_rad, radius)?;
         let mean = sol[0];
         (mean.is_finite() && mean > 0.0 && sol.iter().all(|v| v.is_finite())).then(|| RadiusHarmonics {
             samples: radius.len(),
@@ -105,9 +114,7 @@ impl ShapeFit {
             return None;
         }
         let nf = n as f64;
-        // Student's t over the 1.96 of `polar_with_ci`, squared onto the variances.
         let t = student_t95(n - 1);
-        let scale = (t / crate::fit::thresholds::Z_95).powi(2) / nf;
         let g: Vec<f64> = per_log.iter().map(|h| -2.0 * h.order2.0).collect();
         let (gm, gv) = mean_var(&g);
         let q: Vec<f64> = per_log.iter().map(|h| h.order2.1).collect();
@@ -115,9 +122,7 @@ impl ShapeFit {
         // The phasor of `cos(4θe + a)` is `e^{ja}`: `c·cos − s·sin` has `(c, −s)`.
         let re: Vec<f64> = per_log.iter().map(|h| h.order4.0).collect();
         let im: Vec<f64> = per_log.iter().map(|h| -h.order4.1).collect();
-        let ((rm, rv), (im_m, iv)) = (mean_var(&re), mean_var(&im));
-        let cov = re.iter().zip(&im).map(|(a, b)| (a - rm) * (b - im_m)).sum::<f64>() / (nf - 1.0);
-        let (sum_ratio, sum_phase_rad) = polar_with_ci(rm, im_m, rv * scale, cov * scale, iv * scale);
+        let (sum_ratio, sum_phase_rad) = mean_phasor(&re, &im);
         Some(ShapeFit {
             phase_b_gain: Estimate { value: gm, ci95: t * (gv / nf).sqrt() },
             sum_ratio,
@@ -198,7 +203,7 @@ impl ShapeFit {
 }
 
 /// Adds `re + j·im` to the phasor `h_n·e^{j·a_n}` of harmonic `order` (created if absent).
-fn add_harmonic(f: &mut FluxSection, order: u16, re: f64, im: f64) {
+pub(super) fn add_harmonic(f: &mut FluxSection, order: u16, re: f64, im: f64) {
     let i = match f.harmonics.iter().position(|h| h.order == order) {
         Some(i) => i,
         None => {
@@ -211,6 +216,18 @@ fn add_harmonic(f: &mut FluxSection, order: u16, re: f64, im: f64) {
     let (x, y) = (h.ratio * c + re, h.ratio * s + im);
     h.ratio = x.hypot(y);
     h.phase_rad = y.atan2(x);
+}
+
+/// The mean of per-log phasors `re + j·im` (at least two) as amplitude and phase, with 95 %
+/// intervals from their spread (Student's t with `n − 1` degrees of freedom).
+pub(super) fn mean_phasor(re: &[f64], im: &[f64]) -> (Estimate, Estimate) {
+    let nf = re.len() as f64;
+    // Student's t over the 1.96 of `polar_with_ci`, squared onto the variances.
+    let t = student_t95(re.len() - 1);
+    let scale = (t / crate::fit::thresholds::Z_95).powi(2) / nf;
+    let ((rm, rv), (im_m, iv)) = (mean_var(re), mean_var(im));
+    let cov = re.iter().zip(im).map(|(a, b)| (a - rm) * (b - im_m)).sum::<f64>() / (nf - 1.0);
+    polar_with_ci(rm, im_m, rv * scale, cov * scale, iv * scale)
 }
 
 /// Mean and sample variance (`n − 1`).

@@ -360,13 +360,42 @@ fn the_sensorless_route_measures_the_flux_shape_from_the_radius() {
     let (e_hold, e_half) = (open_loop_ripple_error(&m, &id, hold), open_loop_ripple_error(&m, &id, hold / 2.0));
     eprintln!("ripple error (tolerance units): I_hold {e_hold:.2}, I_hold/2 {e_half:.2}");
     assert!(e_hold <= 1.0 && e_half <= 1.0, "{e_hold} {e_half}");
-    // The circle: the same logs without the shape correction.
-    let circle = super::estimate(&logs, &super::winding(&base), &FluxOptions::default()).unwrap();
+    // The circle: the same quasi-static logs (no turn runs) without the shape correction.
+    let slow: Vec<_> = logs.iter().filter(|l| !super::turn::is_turn_run(l, &base)).cloned().collect();
+    let circle = super::estimate(&slow, &super::winding(&base), &FluxOptions::default()).unwrap();
     let cf = crate::fit::fit(&circle.logs, &fit_options(&base, &[1, 2, 4])).unwrap();
     let cid = crate::model::Model::from_fit(&cf).apply_to(&base, Some("circle"), "circle.toml").unwrap();
     let e_circle = open_loop_ripple_error(&m, &cid, hold / 2.0);
     eprintln!("the circle: I_hold/2 {e_circle:.2}");
     assert!(e_circle > 2.0, "{e_circle}");
+    // The split is the turn runs' measurement, and it is the motor's.
+    let turn = f.turn.clone().expect("the plan's two turn runs measure X5 - X3");
+    assert!(f.turn_passes >= 1 && turn.logs == 2 && f.turn_left_out.is_empty(), "{turn:?} {:?}", f.turn_left_out);
+    let diff = |fl: &stepdamp_profile::flux::FluxSection| {
+        fl.harmonics.iter().filter(|h| h.order == 3 || h.order == 5).fold((0.0, 0.0), |a, h| {
+            let s = if h.order == 5 { 1.0 } else { -1.0 };
+            (a.0 + s * h.ratio * h.phase_rad.cos(), a.1 + s * h.ratio * h.phase_rad.sin())
+        })
+    };
+    let (dt, dw) = (diff(&m.motor.flux), diff(&f.flux));
+    // The 50-motor family: within 1.1e-3 (tests/real_sensorless.rs).
+    assert!((dw.0 - dt.0).hypot(dw.1 - dt.1) <= 1.5e-3, "X5 - X3 written {dw:?}, the motor's {dt:?}");
+    // A turn run that stalled on its ramp: the same run on the motor with 10× its inertia
+    // and a 10 ms ramp, which the rotor cannot follow. It is named and left out; one turn run
+    // left cannot split the sum, so the written split falls back to THIRD_SHARE, with its note.
+    let j = p.runs.iter().position(|r| r.reason.starts_with("turn")).unwrap();
+    let heavy = m.edited("heavy", |d| d.motor.inertia_kg_m2 *= 10.0).unwrap();
+    let fast = crate::plan::PlannedRun { ramp_s: 0.01, ..p.runs[j].clone() };
+    let rows = simulate_open_loop_run(&heavy, &base, &fast, 0.005, run_seed(1, j as u64)).unwrap();
+    let last = rows.last().unwrap();
+    assert!((last.theta_cmd_rad - last.theta_fb_rad).abs() > 10.0, "the rotor did not stall: {last:?}");
+    let mut stalled = logs.clone();
+    stalled[j] = SensorlessLog::from_rows(&rows, &p.runs[j].name);
+    let g = identify_sensorless(&stalled, &base, &fit_options(&base, &[1, 2, 4]), &FluxOptions::default()).unwrap();
+    assert!(g.turn_left_out.len() == 1 && g.turn_left_out[0].starts_with(&stalled[j].source), "{:?}", g.turn_left_out);
+    assert!(g.turn.is_none(), "{:?}", g.turn);
+    let report = super::report::SensorlessReport::new(&base.name, 1.0, 0.3, &base.motor.flux, &g).to_string();
+    assert!(report.contains("left out of the split") && report.contains("no turn runs split it"), "{report}");
 }
 
 /// A base whose `L` is 30 % high on a motor whose phase b is 18 % strong (both as written
