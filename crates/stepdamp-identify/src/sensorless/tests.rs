@@ -383,6 +383,7 @@ fn the_sensorless_route_measures_the_flux_shape_from_the_radius() {
     // A turn run that stalled on its ramp: the same run on the motor with 10× its inertia
     // and a 10 ms ramp, which the rotor cannot follow. It is named and left out; one turn run
     // left cannot split the sum, so the written split falls back to THIRD_SHARE, with its note.
+    let p = plan(&base, &SensorlessPlanOptions::default()).unwrap();
     let j = p.runs.iter().position(|r| r.reason.starts_with("turn")).unwrap();
     let heavy = m.edited("heavy", |d| d.motor.inertia_kg_m2 *= 10.0).unwrap();
     let fast = crate::plan::PlannedRun { ramp_s: 0.01, ..p.runs[j].clone() };
