@@ -32,7 +32,8 @@ fn the_sensorless_plan_as_csv_has_the_documented_columns() {
         )
     );
     let rows: Vec<Vec<String>> = lines.map(|l| l.split(',').map(str::to_string).collect()).collect();
-    assert_eq!(rows.len(), 4);
+    // Two speeds in both directions, then the turn pair (docs/sensorless.md#the-split-from-a-fast-run).
+    assert_eq!(rows.len(), 6);
     for r in &rows {
         assert_eq!(
             (r[1].as_str(), &r[7..]),
@@ -43,8 +44,12 @@ fn the_sensorless_plan_as_csv_has_the_documented_columns() {
         assert!(v[0].abs() > 0.1 && v[1] > v[2] + v[3] && v[2] >= 0.02, "{r:?}");
         assert_eq!(v[4], 1.9, "the open-loop runs hold patent-motor's holding current");
     }
-    // Both directions at two speeds.
-    assert!(rows[0][2].parse::<f64>().unwrap() > 0.0 && rows[1][2].parse::<f64>().unwrap() < 0.0);
+    // Both directions at two speeds; the turn pair both ways at twice patent-motor's open-loop
+    // natural frequency (844 rad/s electrical, 50 pole pairs: 33.76 rad/s), far above the others.
+    let speed = |i: usize| rows[i][2].parse::<f64>().unwrap();
+    assert!(speed(0) > 0.0 && speed(1) < 0.0);
+    assert!((speed(4) - 33.76).abs() < 0.01 && (speed(5) + 33.76).abs() < 0.01, "{rows:?}");
+    assert!((0..4).all(|i| speed(i).abs() < 0.1 * speed(4)), "{rows:?}");
 }
 
 /// The plan asks for runs at the holding current only, and says why (a second current would
@@ -93,7 +98,7 @@ fn run_then_identify_without_an_encoder_recovers_the_detent_and_trims_r() {
     let (_, err) = text(&o);
     assert!(o.status.success(), "{err}");
     let logs = logs_in(&runs);
-    assert_eq!(logs.len(), 4);
+    assert_eq!(logs.len(), 6, "the plan's four runs and its turn pair");
     // What a drive without an encoder logs: no theta_fb_rad.
     let head = std::fs::read_to_string(&logs[0]).unwrap();
     assert_eq!(head.lines().next(), Some("t_s,theta_cmd_rad,i_a_a,i_b_a,v_a_v,v_b_v"));
