@@ -195,7 +195,7 @@ def pd_concat_columns(frame):
     return pd.concat([frame, frame[["t_s"]]], axis=1)
 
 
-# The accelerometer route (docs/python.md#accelerometer-captures): whatever the file, the
+# The accelerometer route (docs/python.md#reading-and-fitting-captures): whatever the file, the
 # axis or the trial, a StepdampError with one printable line naming what was wrong.
 CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
 
