@@ -108,7 +108,7 @@ typedef struct sd_motor {
   float coulomb_friction_nm;
   /**
    * Detent harmonics (`detent_count` of them; read only during `sd_config_init()`,
-   * which copies them), or NULL with a count of 0.
+   * which copies them, and `sd_motor_ripple()`), or NULL with a count of 0.
    */
   const struct sd_harmonic *detent;
   /**
@@ -120,7 +120,7 @@ typedef struct sd_motor {
    * imbalance, docs/design.md#real-motors-flux-harmonics): its part per ampere of `i_d`,
    * `amplitude_nm` in N·m/A (what `stepdamp motor ripple --format json` gives as the
    * profile's parts; `export c-header` writes it), or NULL with a count of 0 for a
-   * pure-sine motor. Read only during `sd_config_init()`.
+   * pure-sine motor. Read only during `sd_config_init()` and `sd_motor_ripple()`.
    */
   const struct sd_harmonic *ripple_per_amp_d;
   /**
@@ -569,6 +569,18 @@ typedef struct sd_config_info {
 #define SD_ERR_RIPPLE_PHASE 33
 
 /**
+ * `sd_motor_ripple()`: `i_d_a` or `i_q_a` is not finite, or the current vector is beyond
+ * `drive.current_limit_a` (each component and its magnitude).
+ */
+#define SD_ERR_OPERATING_CURRENT 34
+
+/**
+ * `sd_motor_ripple()`: `capacity` is smaller than the number of harmonics to write (`*count`
+ * says how many; nothing is written to `out`).
+ */
+#define SD_ERR_CAPACITY_TOO_SMALL 35
+
+/**
  * Microstepping without an encoder (patent eqs. 7–8).
  */
 #define SD_MODE_OPEN_LOOP 0
@@ -646,6 +658,34 @@ sd_status sd_params_patent_motor(sd_mode mode, sd_compensation compensation, str
  */
 sd_status sd_config_init(const struct sd_params *params,
                          struct sd_config *cfg);
+
+/**
+ * The total ripple torque on the rotor of the motor in `*params` at rotor-frame currents
+ * `i_d_a`, `i_q_a` (A): the detent plus the ripple that grows with the current
+ * (`motor.ripple_per_amp_d`, `motor.ripple_per_amp_q`), harmonic by harmonic in the detent's
+ * convention (torque on the rotor `−A sin(k·θe + φ)`, `amplitude_nm` in N·m > 0, `phase_rad`
+ * in (−π, π]), ascending orders, orders whose total is 0 left out: at most
+ * `SD_MAX_HARMONIC_ORDER`. Open loop at the holding current is `(holding_current_a, 0)`, a
+ * servo `(0, i_q)`. What `stepdamp motor ripple --id A --iq A` prints as its total, in
+ * `f32` (docs/c.md).
+ *
+ * `*params` is validated as `sd_config_init()` validates it (the same statuses; like it,
+ * a start-up call: its stack holds a configuration). A non-finite current, or a current
+ * vector beyond `drive.current_limit_a`, is `SD_ERR_OPERATING_CURRENT`. On `SD_OK` or
+ * `SD_ERR_CAPACITY_TOO_SMALL`, `*count` is the number of harmonics (on any other status 0,
+ * unless `count` is NULL); `out[0 .. *count]` is written only when `capacity >= *count`.
+ * `out` may be NULL with a `capacity` of 0 to ask for the count.
+ *
+ * # Safety
+ * `params` as for `sd_config_init()`; `out` is NULL or points to `capacity` writable
+ * `sd_harmonic`s; `count` is NULL or writable.
+ */
+sd_status sd_motor_ripple(const struct sd_params *params,
+                          float i_d_a,
+                          float i_q_a,
+                          struct sd_harmonic *out,
+                          uint32_t capacity,
+                          uint32_t *count);
 
 /**
  * Sets `*st` to the start state: rotor and command at position 0, speed 0, no faults.

@@ -105,10 +105,30 @@ int main(void) {
     expect("state read with NULL out", sd_state_read(&st, NULL), SD_ERR_NULL_POINTER);
     expect("step with everything valid", sd_step(&cfg, &st, &m, &out), SD_OK);
 
+    /* sd_motor_ripple: a current that is not a number or beyond drive.current_limit_a, a
+     * table too small for the harmonics (the count says how many are needed). */
+    uint32_t count = 0;
+    expect("motor ripple at a NaN i_d", sd_motor_ripple(&p, NAN, 0.0f, table, SD_MAX_HARMONICS, &count),
+           SD_ERR_OPERATING_CURRENT);
+    expect("motor ripple beyond the current limit",
+           sd_motor_ripple(&p, 0.0f, 1.01f * p.drive.current_limit_a, table, SD_MAX_HARMONICS, &count),
+           SD_ERR_OPERATING_CURRENT);
+    expect("motor ripple into a table of 1", sd_motor_ripple(&p, 1.0f, 0.0f, table, 1, &count),
+           SD_ERR_CAPACITY_TOO_SMALL);
+    if (count == 3) {
+        passed++;
+        printf("ok   %-48s -> %u\n", "its count: the detent's 3 orders", (unsigned)count);
+    } else {
+        failed++;
+        printf("FAIL %-48s -> %u, want 3\n", "its count: the detent's 3 orders", (unsigned)count);
+    }
+    expect("motor ripple of a zero Km", sd_motor_ripple(&(sd_params){0}, 0.0f, 0.0f, NULL, 0, &count), SD_ERR_KM);
+
     /* The codes tested above are distinct, and so are their texts. */
     const sd_status codes[] = {SD_ERR_KM, SD_ERR_BUS_VOLTAGE, SD_ERR_DETENT_POINTER_WITHOUT_COUNT,
                                SD_ERR_DETENT_NULL_WITH_COUNT, SD_ERR_DETENT_COUNT_BEYOND_CAPACITY,
-                               SD_ERR_NULL_POINTER, SD_ERR_NOT_INITIALIZED, SD_OK};
+                               SD_ERR_NULL_POINTER, SD_ERR_NOT_INITIALIZED, SD_ERR_OPERATING_CURRENT,
+                               SD_ERR_CAPACITY_TOO_SMALL, SD_OK};
     unsigned n = sizeof codes / sizeof codes[0], same = 0;
     for (unsigned i = 0; i < n; i++)
         for (unsigned j = 0; j < i; j++)

@@ -3,7 +3,8 @@
  * --name motor --duration 0` (CI regenerates it and fails on a difference). This checks that the exported
  * initializer configures the controller and that the motor, drive and encoder it carries are
  * the library's own reference motor (the servo loop differs: the preset's is 40 Hz, the
- * core's reference 50 Hz). */
+ * core's reference 50 Hz), and reads the motor's ripple with sd_motor_ripple. */
+#include <math.h>
 #include <stdio.h>
 
 #include "motor_params.h"
@@ -52,6 +53,22 @@ int main(void) {
                      && motor_PARAMS.motor.detent[i].phase_rad == ref.motor.detent[i].phase_rad;
     }
     expect(detent_ok, "detent harmonics equal the reference");
+
+    /* The motor's ripple at open loop's operating point (holding current on d, none on q):
+     * patent-motor has no [motor.flux], so it is its detent, orders 1, 2, 4; the 4th is
+     * 0.02 N·m at phase 0 (torque on the rotor -A sin(4·θe + φ)). */
+    sd_harmonic ripple[SD_MAX_HARMONIC_ORDER];
+    uint32_t count = 0;
+    sd_status s = sd_motor_ripple(&motor_PARAMS, motor_PARAMS.drive.holding_current_a, 0.0f, ripple,
+                                  SD_MAX_HARMONIC_ORDER, &count);
+    expect(s == SD_OK && count == 3 && ripple[0].order == 1 && ripple[1].order == 2 && ripple[2].order == 4,
+           "motor ripple at the holding current: orders 1, 2, 4");
+    if (s == SD_OK && count == 3) {
+        printf("     order %u: %.6f N·m at %.6f rad\n", (unsigned)ripple[2].order, (double)ripple[2].amplitude_nm,
+               (double)ripple[2].phase_rad);
+        expect(fabsf(ripple[2].amplitude_nm - 0.02f) < 1e-7f && fabsf(ripple[2].phase_rad) < 1e-6f,
+               "its 4th order is the detent's, 0.02 N·m at 0 rad");
+    }
     printf("exported_params: %s\n", failures ? "FAILED" : "ok");
     return failures ? 1 : 0;
 }

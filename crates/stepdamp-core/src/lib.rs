@@ -80,7 +80,7 @@ pub use detent::{Harmonic, HarmonicSeries, MAX_HARMONIC_ORDER};
 pub use drive::{CURRENT_SENSOR_FAULT_PERIODS, Measurement, Output, Signals, State, step};
 pub use modulator::{LegDuties, Topology};
 pub use park::{Ab, Dq};
-pub use ripple::{CurrentRipple, RippleModel};
+pub use ripple::{CurrentRipple, RippleModel, TotalRipple, total_ripple};
 
 /// `x` limited to `[lo, hi]` (`lo ≤ hi`), with NaN mapped to `lo` (`f32::clamp` would
 /// return NaN, and the controller must never output or store NaN).

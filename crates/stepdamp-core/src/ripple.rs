@@ -41,8 +41,11 @@
 //!
 //! A model without current parts ([`CurrentRipple::NONE`]) runs exactly the code and the
 //! bits of the detent-only laws.
+//!
+//! [`total_ripple`] gives the total ripple at one operating point, `T0 + i_d·D + i_q·Q̃`
+//! harmonic by harmonic (no controller involved: what the C API's `sd_motor_ripple` returns).
 
-use crate::config::{Compensation, ConfigError, Mode};
+use crate::config::{Compensation, ConfigError, Mode, MotorModel, Reason};
 use crate::detent::{Harmonic, HarmonicSeries, MAX_HARMONIC_ORDER};
 use crate::limits::{CURRENT_RIPPLE_NM_PER_A, CURRENT_RIPPLE_PHASE_RAD};
 
@@ -180,6 +183,80 @@ impl RippleModel {
 #[inline]
 pub fn divisor(v: &RippleValue, sin_delta: f32, cos_delta: f32) -> f32 {
     crate::at_least(cos_delta * (1.0 - v.per_amp_q) + sin_delta * v.per_amp_d, MIN_DIVISOR)
+}
+
+/// The total ripple of a motor at one operating point ([`total_ripple`]): harmonics in the
+/// detent's convention (torque on the rotor `−A·sin(k·θe + φ)`), `amplitude_nm` in N·m
+/// (> 0), `phase_rad` in (−π, π], ascending orders; an order whose total is 0 is left out.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TotalRipple {
+    harmonics: [Harmonic; MAX_HARMONIC_ORDER],
+    len: usize,
+}
+
+impl TotalRipple {
+    /// The harmonics, at most [`MAX_HARMONIC_ORDER`].
+    pub fn harmonics(&self) -> &[Harmonic] {
+        self.harmonics.get(..self.len).unwrap_or(&[])
+    }
+}
+
+/// The ripple torque on the rotor of `motor` at rotor-frame currents `(i_d_a, i_q_a)` in A,
+/// detent plus the ripple that grows with the current, harmonic by harmonic (module doc:
+/// the ripple is linear in the currents at each angle, so each order is the complex sum
+/// `T0_k + i_d·D_k + i_q·Q̃_k`). Open loop at the holding current is `(I_hold, 0)`, a servo
+/// `(0, i_q)`. The same total as `stepdamp_profile::ripple::ripple` in `f32` from the
+/// controller's tables (docs/design.md#real-motors-flux-harmonics).
+///
+/// Errors: a table the controller would refuse (as [`crate::Config::new`]: orders,
+/// duplicates, amplitude and phase ranges); a non-finite current, or a current vector
+/// beyond `current_limit_a` (A, each component and the magnitude, as the command line's
+/// `motor ripple`), is [`ConfigError::Invalid`] naming `i_d_a` or `i_q_a`. No allocation,
+/// never panics; `f32` rounding only (relative ~1e-7 of the largest term per order).
+pub fn total_ripple(
+    motor: &MotorModel<'_>,
+    current_limit_a: f32,
+    i_d_a: f32,
+    i_q_a: f32,
+) -> Result<TotalRipple, ConfigError> {
+    let refuse = |field, value, why| Err(ConfigError::Invalid { field, value, reason: Reason::Other(why) });
+    let within = |v: f32| v.is_finite() && libm::fabsf(v) <= current_limit_a;
+    if !within(i_d_a) {
+        return refuse("i_d_a", i_d_a, "must be finite and within ±drive.current_limit_a");
+    }
+    if !within(i_q_a) {
+        return refuse("i_q_a", i_q_a, "must be finite and within ±drive.current_limit_a");
+    }
+    // The components passed, so the limit is not NaN (a NaN limit refuses every current).
+    if libm::hypotf(i_d_a, i_q_a) > current_limit_a {
+        return refuse("i_q_a", i_q_a, "the current vector (i_d_a, i_q_a) must be within drive.current_limit_a");
+    }
+    let table = |h| HarmonicSeries::within_limits(h, 1.0, &CURRENT_RIPPLE_NM_PER_A, &CURRENT_RIPPLE_PHASE_RAD);
+    let (d, q) = (table(motor.current_ripple.per_amp_d)?, table(motor.current_ripple.per_amp_q)?);
+    let total = HarmonicSeries::new(motor.detent, 1.0)?.plus_scaled(&d, i_d_a).plus_scaled(&q, i_q_a);
+    let mut out = TotalRipple { harmonics: [Harmonic::default(); MAX_HARMONIC_ORDER], len: 0 };
+    for (k, (&a, &b)) in total.sin_coef.iter().zip(&total.cos_coef).enumerate() {
+        let (amplitude_nm, phase_rad) = polar(a, b);
+        if !amplitude_nm.is_finite() {
+            // Only for a current limit far beyond the controller's (f32 overflow).
+            return refuse("i_q_a", i_q_a, "the ripple at this current is not finite in f32");
+        }
+        if amplitude_nm == 0.0 {
+            continue;
+        }
+        if let Some(slot) = out.harmonics.get_mut(out.len) {
+            *slot = Harmonic { order: k as u16 + 1, amplitude_nm, phase_rad };
+            out.len += 1;
+        }
+    }
+    Ok(out)
+}
+
+/// `(A, φ)` with `a·sin x + b·cos x = A·sin(x + φ)`: `A = |(a, b)|`, `φ = atan2(b, a)` in
+/// (−π, π] (atan2's −π, from a `b` of −0 or below its rounding, is π; a phase of −0 is 0).
+fn polar(a: f32, b: f32) -> (f32, f32) {
+    let phase = libm::atan2f(b, a) + 0.0;
+    (libm::hypotf(a, b), if phase <= -core::f32::consts::PI { core::f32::consts::PI } else { phase })
 }
 
 #[cfg(test)]

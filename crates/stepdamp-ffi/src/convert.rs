@@ -15,12 +15,16 @@ static PATENT_DETENT_C: [sd_harmonic; PATENT_MOTOR_DETENT.len()] = {
     let mut t = [sd_harmonic { order: 0, amplitude_nm: 0.0, phase_rad: 0.0 }; PATENT_MOTOR_DETENT.len()];
     let mut i = 0;
     while i < t.len() {
-        let h = PATENT_MOTOR_DETENT[i];
-        t[i] = sd_harmonic { order: h.order, amplitude_nm: h.amplitude_nm, phase_rad: h.phase_rad };
+        t[i] = harmonic_to_c(PATENT_MOTOR_DETENT[i]);
         i += 1;
     }
     t
 };
+
+/// A core harmonic in C layout.
+pub(crate) const fn harmonic_to_c(h: Harmonic) -> sd_harmonic {
+    sd_harmonic { order: h.order, amplitude_nm: h.amplitude_nm, phase_rad: h.phase_rad }
+}
 
 pub(crate) fn mode_from_c(m: sd_mode) -> Result<Mode, sd_status> {
     match m {
@@ -130,20 +134,28 @@ pub(crate) fn params_from_c<'t>(
 /// `Params::patent_motor(mode, compensation)` in C layout.
 pub(crate) fn patent_motor_c(mode: sd_mode, compensation: sd_compensation) -> Result<sd_params, sd_status> {
     let p = Params::patent_motor(mode_from_c(mode)?, compensation_from_c(compensation)?);
+    Ok(params_to_c(&p, [&PATENT_DETENT_C, &[], &[]]))
+}
+
+/// `p` in C layout, its harmonic tables (the detent, the ripple per ampere of `i_d` and of
+/// `i_q`) at `tables`, which the result points to (NULL for an empty table).
+pub(crate) fn params_to_c(p: &Params<'_>, tables: [&[sd_harmonic]; 3]) -> sd_params {
+    let table = |t: &[sd_harmonic]| if t.is_empty() { (core::ptr::null(), 0) } else { (t.as_ptr(), t.len() as u32) };
+    let [(detent, detent_count), (per_amp_d, per_amp_d_count), (per_amp_q, per_amp_q_count)] = tables.map(table);
     let (m, d, s) = (&p.motor, &p.drive, &p.servo);
-    Ok(sd_params {
+    sd_params {
         motor: sd_motor {
             km_nm_per_a: m.km_nm_per_a,
             pole_pairs: m.pole_pairs,
             resistance_ohm: m.resistance_ohm,
             inductance_h: m.inductance_h,
             coulomb_friction_nm: m.coulomb_friction_nm,
-            detent: PATENT_DETENT_C.as_ptr(),
-            detent_count: PATENT_DETENT_C.len() as u32,
-            ripple_per_amp_d: core::ptr::null(),
-            ripple_per_amp_d_count: 0,
-            ripple_per_amp_q: core::ptr::null(),
-            ripple_per_amp_q_count: 0,
+            detent,
+            detent_count,
+            ripple_per_amp_d: per_amp_d,
+            ripple_per_amp_d_count: per_amp_d_count,
+            ripple_per_amp_q: per_amp_q,
+            ripple_per_amp_q_count: per_amp_q_count,
         },
         drive: sd_drive {
             bus_voltage_v: d.bus_voltage_v,
@@ -163,7 +175,7 @@ pub(crate) fn patent_motor_c(mode: sd_mode, compensation: sd_compensation) -> Re
         },
         mode: mode_to_c(p.mode),
         compensation: compensation_to_c(p.compensation),
-    })
+    }
 }
 
 pub(crate) fn from_output(o: &Output) -> sd_output {
@@ -221,6 +233,7 @@ pub(crate) fn status_of(e: &ConfigError) -> sd_status {
             "detent.phase_rad" => SD_ERR_DETENT_PHASE,
             "current_ripple.amplitude_nm_per_a" => SD_ERR_RIPPLE_AMPLITUDE,
             "current_ripple.phase_rad" => SD_ERR_RIPPLE_PHASE,
+            "i_d_a" | "i_q_a" => SD_ERR_OPERATING_CURRENT,
             _ => SD_ERR_INVALID_PARAMETER,
         },
     }
@@ -234,7 +247,7 @@ mod texts {
 
 /// Every status code with its text (one home: `sd_status_str` and the tests read it; the
 /// ranges come from [`texts`]).
-pub(crate) const STATUS_TEXTS: [(sd_status, &CStr); 34] = [
+pub(crate) const STATUS_TEXTS: [(sd_status, &CStr); 36] = [
     (SD_OK, c"ok"),
     (SD_ERR_NULL_POINTER, c"a pointer argument is NULL"),
     (SD_ERR_NOT_INITIALIZED, c"sd_config/sd_state not initialised (or its initialisation failed)"),
@@ -272,6 +285,14 @@ pub(crate) const STATUS_TEXTS: [(sd_status, &CStr); 34] = [
     ),
     (SD_ERR_RIPPLE_AMPLITUDE, texts::RIPPLE_AMPLITUDE),
     (SD_ERR_RIPPLE_PHASE, texts::RIPPLE_PHASE),
+    (
+        SD_ERR_OPERATING_CURRENT,
+        c"sd_motor_ripple: i_d_a or i_q_a is not finite, or the current vector is beyond drive.current_limit_a",
+    ),
+    (
+        SD_ERR_CAPACITY_TOO_SMALL,
+        c"sd_motor_ripple: capacity is smaller than the harmonics to write (*count says how many)",
+    ),
 ];
 
 pub(crate) fn status_text(s: sd_status) -> &'static CStr {

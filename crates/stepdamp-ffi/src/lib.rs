@@ -35,9 +35,9 @@ pub use types::*;
 
 use core::ffi::c_char;
 
-use stepdamp_core::{Config, Measurement, Position, State, step};
+use stepdamp_core::{Config, Measurement, Params, Position, State, step, total_ripple};
 
-use convert::{from_output, params_from_c, patent_motor_c, status_of};
+use convert::{from_output, harmonic_to_c, params_from_c, patent_motor_c, status_of};
 
 /// Reads `*p` after a NULL check.
 macro_rules! deref {
@@ -182,25 +182,9 @@ pub unsafe extern "C" fn sd_config_init(params: *const sd_params, cfg: *mut sd_c
     // Cleared first so that a failed initialisation leaves an unusable config.
     unsafe { core::ptr::addr_of_mut!((*slot).tag).write(0) };
     let p = deref!(params);
-    let m = &p.motor;
-    let detent_errors =
-        (SD_ERR_DETENT_COUNT_BEYOND_CAPACITY, SD_ERR_DETENT_NULL_WITH_COUNT, SD_ERR_DETENT_POINTER_WITHOUT_COUNT);
-    let ripple_errors = (SD_ERR_RIPPLE_TABLE, SD_ERR_RIPPLE_TABLE, SD_ERR_RIPPLE_TABLE);
-    // SAFETY: the caller promises each pointer is NULL or points to its count of readable
-    // harmonics (the function's safety section).
-    let tables = unsafe {
-        (
-            c_table(m.detent, m.detent_count, detent_errors),
-            c_table(m.ripple_per_amp_d, m.ripple_per_amp_d_count, ripple_errors),
-            c_table(m.ripple_per_amp_q, m.ripple_per_amp_q_count, ripple_errors),
-        )
-    };
-    let harmonics = match tables {
-        (Ok(a), Ok(b), Ok(c)) => [a, b, c],
-        (Err(e), _, _) | (_, Err(e), _) | (_, _, Err(e)) => return e,
-    };
     let mut tables = [[stepdamp_core::Harmonic::default(); SD_MAX_HARMONICS as usize]; 3];
-    let core_params = match params_from_c(p, harmonics, &mut tables) {
+    // SAFETY: forwarded caller contract (the tables of `*params`).
+    let core_params = match unsafe { core_params(p, &mut tables) } {
         Ok(cp) => cp,
         Err(s) => return s,
     };
@@ -212,6 +196,30 @@ pub unsafe extern "C" fn sd_config_init(params: *const sd_params, cfg: *mut sd_c
         }
         Err(e) => status_of(&e),
     }
+}
+
+/// The core's parameters of `*p`, its harmonic tables copied into `tables`, or the status
+/// of the first table whose pointer and count disagree, or of a bad enumeration.
+///
+/// # Safety
+/// `p.motor.detent`, `p.motor.ripple_per_amp_d` and `p.motor.ripple_per_amp_q` are NULL or
+/// point to their count of readable `sd_harmonic`s.
+#[allow(unsafe_code)]
+unsafe fn core_params<'t>(p: &sd_params, tables: &'t mut convert::Tables) -> Result<Params<'t>, sd_status> {
+    let m = &p.motor;
+    let detent_errors =
+        (SD_ERR_DETENT_COUNT_BEYOND_CAPACITY, SD_ERR_DETENT_NULL_WITH_COUNT, SD_ERR_DETENT_POINTER_WITHOUT_COUNT);
+    let ripple_errors = (SD_ERR_RIPPLE_TABLE, SD_ERR_RIPPLE_TABLE, SD_ERR_RIPPLE_TABLE);
+    // SAFETY: the caller promises each pointer is NULL or points to its count of readable
+    // harmonics (the function's safety section).
+    let harmonics = unsafe {
+        [
+            c_table(m.detent, m.detent_count, detent_errors)?,
+            c_table(m.ripple_per_amp_d, m.ripple_per_amp_d_count, ripple_errors)?,
+            c_table(m.ripple_per_amp_q, m.ripple_per_amp_q_count, ripple_errors)?,
+        ]
+    };
+    params_from_c(p, harmonics, tables)
 }
 
 /// A C table of `count` harmonics at `ptr` as a slice; the statuses for a count beyond
@@ -238,6 +246,67 @@ unsafe fn c_table<'a>(
         // readable harmonics.
         Ok(unsafe { core::slice::from_raw_parts(ptr, count as usize) })
     }
+}
+
+/// The total ripple torque on the rotor of the motor in `*params` at rotor-frame currents
+/// `i_d_a`, `i_q_a` (A): the detent plus the ripple that grows with the current
+/// (`motor.ripple_per_amp_d`, `motor.ripple_per_amp_q`), harmonic by harmonic in the detent's
+/// convention (torque on the rotor `−A sin(k·θe + φ)`, `amplitude_nm` in N·m > 0, `phase_rad`
+/// in (−π, π]), ascending orders, orders whose total is 0 left out: at most
+/// `SD_MAX_HARMONIC_ORDER`. Open loop at the holding current is `(holding_current_a, 0)`, a
+/// servo `(0, i_q)`. What `stepdamp motor ripple --id A --iq A` prints as its total, in
+/// `f32` (docs/c.md).
+///
+/// `*params` is validated as `sd_config_init()` validates it (the same statuses; like it,
+/// a start-up call: its stack holds a configuration). A non-finite current, or a current
+/// vector beyond `drive.current_limit_a`, is `SD_ERR_OPERATING_CURRENT`. On `SD_OK` or
+/// `SD_ERR_CAPACITY_TOO_SMALL`, `*count` is the number of harmonics (on any other status 0,
+/// unless `count` is NULL); `out[0 .. *count]` is written only when `capacity >= *count`.
+/// `out` may be NULL with a `capacity` of 0 to ask for the count.
+///
+/// # Safety
+/// `params` as for `sd_config_init()`; `out` is NULL or points to `capacity` writable
+/// `sd_harmonic`s; `count` is NULL or writable.
+#[allow(unsafe_code)]
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn sd_motor_ripple(
+    params: *const sd_params,
+    i_d_a: f32,
+    i_q_a: f32,
+    out: *mut sd_harmonic,
+    capacity: u32,
+    count: *mut u32,
+) -> sd_status {
+    write_out!(count, 0);
+    let p = deref!(params);
+    if out.is_null() && capacity > 0 {
+        return SD_ERR_NULL_POINTER;
+    }
+    let mut tables = [[stepdamp_core::Harmonic::default(); SD_MAX_HARMONICS as usize]; 3];
+    // SAFETY: forwarded caller contract (the tables of `*params`).
+    let core_params = match unsafe { core_params(p, &mut tables) } {
+        Ok(cp) => cp,
+        Err(s) => return s,
+    };
+    if let Err(e) = Config::new(&core_params) {
+        return status_of(&e);
+    }
+    let total = match total_ripple(&core_params.motor, core_params.drive.current_limit_a, i_d_a, i_q_a) {
+        Ok(t) => t,
+        Err(e) => return status_of(&e),
+    };
+    let harmonics = total.harmonics();
+    // At most MAX_HARMONIC_ORDER = 32: the cast is exact.
+    write_out!(count, harmonics.len() as u32);
+    if harmonics.len() > capacity as usize {
+        return SD_ERR_CAPACITY_TOO_SMALL;
+    }
+    for (i, h) in harmonics.iter().enumerate() {
+        // SAFETY: `out` is non-NULL here (capacity ≥ len > 0 when the loop runs), and the
+        // caller promises `capacity` writable harmonics; i < len ≤ capacity.
+        unsafe { out.add(i).write(harmonic_to_c(*h)) };
+    }
+    SD_OK
 }
 
 /// Sets `*st` to the start state: rotor and command at position 0, speed 0, no faults.
@@ -414,6 +483,9 @@ pub unsafe extern "C" fn sd_ref_sincosf(x: f32, s: *mut f32, c: *mut f32) -> sd_
 pub extern "C" fn sd_status_str(status: sd_status) -> *const c_char {
     convert::status_text(status).as_ptr()
 }
+
+#[cfg(test)]
+mod tests;
 
 /// The bare-metal panic handler of a C firmware (feature `panic-handler`): nothing in
 /// this library panics on any input, so reaching it means a bug; it stops in an endless

@@ -84,6 +84,12 @@ pub const SD_ERR_RIPPLE_TABLE: sd_status = 31;
 pub const SD_ERR_RIPPLE_AMPLITUDE: sd_status = 32;
 /// A current-ripple phase is outside its range (`sd_status_str()` states it).
 pub const SD_ERR_RIPPLE_PHASE: sd_status = 33;
+/// `sd_motor_ripple()`: `i_d_a` or `i_q_a` is not finite, or the current vector is beyond
+/// `drive.current_limit_a` (each component and its magnitude).
+pub const SD_ERR_OPERATING_CURRENT: sd_status = 34;
+/// `sd_motor_ripple()`: `capacity` is smaller than the number of harmonics to write (`*count`
+/// says how many; nothing is written to `out`).
+pub const SD_ERR_CAPACITY_TOO_SMALL: sd_status = 35;
 
 /// Control mode (`SD_MODE_*`).
 pub type sd_mode = u32;
@@ -146,7 +152,7 @@ pub struct sd_motor {
     /// Coulomb friction `Fs` in N·m (≥ 0), fed forward in servo mode.
     pub coulomb_friction_nm: f32,
     /// Detent harmonics (`detent_count` of them; read only during `sd_config_init()`,
-    /// which copies them), or NULL with a count of 0.
+    /// which copies them, and `sd_motor_ripple()`), or NULL with a count of 0.
     pub detent: *const sd_harmonic,
     /// Number of harmonics at `detent`, 0..=`SD_MAX_HARMONICS`.
     pub detent_count: u32,
@@ -154,7 +160,7 @@ pub struct sd_motor {
     /// imbalance, docs/design.md#real-motors-flux-harmonics): its part per ampere of `i_d`,
     /// `amplitude_nm` in N·m/A (what `stepdamp motor ripple --format json` gives as the
     /// profile's parts; `export c-header` writes it), or NULL with a count of 0 for a
-    /// pure-sine motor. Read only during `sd_config_init()`.
+    /// pure-sine motor. Read only during `sd_config_init()` and `sd_motor_ripple()`.
     pub ripple_per_amp_d: *const sd_harmonic,
     /// Number of harmonics at `ripple_per_amp_d`, 0..=`SD_MAX_HARMONICS`.
     pub ripple_per_amp_d_count: u32,

@@ -195,3 +195,98 @@ proptest! {
         }
     }
 }
+
+/// The motor of [`params`] with `ripple`, for [`total_ripple`].
+fn motor(ripple: CurrentRipple<'static>) -> crate::MotorModel<'static> {
+    params(Mode::OpenLoop, Compensation::Patent, ripple).motor
+}
+
+/// `Σ A·sin(k·θe + φ)` of [`total_ripple`]'s harmonics: minus the torque on the rotor.
+fn total_series(t: &TotalRipple, te: f64) -> f64 {
+    series(t.harmonics(), te)
+}
+
+#[test]
+fn the_detent_alone_reads_back_at_zero_current() {
+    let t = total_ripple(&motor(RIPPLE), 3.0, 0.0, 0.0).unwrap();
+    let mut want = PATENT;
+    want.sort_by_key(|h| h.order);
+    assert_eq!(t.harmonics().len(), want.len());
+    for (got, want) in t.harmonics().iter().zip(&want) {
+        assert_eq!(got.order, want.order);
+        assert!((got.amplitude_nm - want.amplitude_nm).abs() < 1e-9, "{got:?} {want:?}");
+        assert!((got.phase_rad - want.phase_rad).abs() < 1e-6, "{got:?} {want:?}");
+    }
+}
+
+#[test]
+fn a_single_term_reads_back_scaled_by_its_current_with_the_phase_wrapped() {
+    static ONE: [Harmonic; 1] = [Harmonic { order: 3, amplitude_nm: 0.05, phase_rad: 2.0 }];
+    let mut m = motor(CurrentRipple { per_amp_d: &[], per_amp_q: &ONE });
+    m.detent = &[];
+    for (i_q, phase) in [(2.0f32, 2.0f32), (-2.0, 2.0 - core::f32::consts::PI)] {
+        let t = total_ripple(&m, 3.0, 0.0, i_q).unwrap();
+        let [h] = t.harmonics() else { panic!("{t:?}") };
+        assert_eq!(h.order, 3);
+        assert!((h.amplitude_nm - 0.1).abs() < 1e-8 && (h.phase_rad - phase).abs() < 1e-6, "{h:?}");
+    }
+    // atan2's −π (a sine coefficient below 0, a cosine one of −0 or below its rounding) is
+    // given as π: the range is (−π, π]; −0 is 0.
+    use core::f32::consts::PI;
+    assert_eq!(libm::atan2f(-0.0, -1.0), -PI);
+    assert_eq!(polar(-1.0, -0.0), (1.0, PI));
+    assert_eq!(polar(-1.0, -1e-30), (1.0, PI));
+    assert_eq!(polar(-1.0, 0.0), (1.0, PI));
+    assert_eq!(polar(2.0, -0.0).1.to_bits(), 0.0f32.to_bits());
+}
+
+#[test]
+fn an_order_whose_total_is_zero_is_left_out() {
+    // The detent's 4th (0.02 N·m at phase 0) cancelled exactly by −2 A of a 0.01 N·m/A 4th.
+    static CANCEL: [Harmonic; 1] = [Harmonic { order: 4, amplitude_nm: 0.01, phase_rad: 0.0 }];
+    let t = total_ripple(&motor(CurrentRipple { per_amp_d: &CANCEL, per_amp_q: &[] }), 3.0, -2.0, 0.0).unwrap();
+    assert_eq!(t.harmonics().iter().map(|h| h.order).collect::<std::vec::Vec<_>>(), [1, 2]);
+}
+
+#[test]
+fn currents_not_finite_or_beyond_the_limit_are_refused_with_their_name() {
+    let m = motor(RIPPLE);
+    let field = |i_d, i_q| match total_ripple(&m, 3.0, i_d, i_q) {
+        Err(ConfigError::Invalid { field, .. }) => field,
+        other => panic!("{other:?}"),
+    };
+    assert_eq!(field(f32::NAN, 0.0), "i_d_a");
+    assert_eq!(field(0.0, f32::INFINITY), "i_q_a");
+    assert_eq!(field(-3.5, 0.0), "i_d_a");
+    assert_eq!(field(2.5, 2.5), "i_q_a", "each within 3 A, the vector 3.5 A");
+    assert!(total_ripple(&m, 3.0, 3.0, 0.0).is_ok() && total_ripple(&m, 3.0, 0.0, -3.0).is_ok());
+    static ORDER: [Harmonic; 1] = [Harmonic { order: 40, amplitude_nm: 0.1, phase_rad: 0.0 }];
+    let bad = motor(CurrentRipple { per_amp_d: &ORDER, per_amp_q: &[] });
+    assert_eq!(total_ripple(&bad, 3.0, 1.0, 0.0), Err(ConfigError::HarmonicOrder { order: 40 }));
+}
+
+proptest! {
+    #[test]
+    fn the_total_is_the_detent_plus_each_part_times_its_current(
+        i_d in -2.0f32..2.0, i_q in -2.0f32..2.0, te in -4.0f64..4.0,
+    ) {
+        // Linear in the currents at every angle: T0 + i_d·D + i_q·Q̃ (torque on the rotor with
+        // the sign flipped), to f32 rounding of terms up to 0.2 N·m.
+        let t = total_ripple(&motor(RIPPLE), 3.0, i_d, i_q).unwrap();
+        let (d, q) = (f64::from(i_d), f64::from(i_q));
+        let want = series(&PATENT, te) + d * series(&PER_AMP_D, te) + q * series(&PER_AMP_Q, te);
+        prop_assert!((total_series(&t, te) - want).abs() < 1e-6, "{} vs {want}", total_series(&t, te));
+        prop_assert!(t.harmonics().iter().all(|h| h.amplitude_nm > 0.0
+            && h.phase_rad > -core::f32::consts::PI && h.phase_rad <= core::f32::consts::PI));
+    }
+
+    #[test]
+    fn any_current_and_limit_give_finite_harmonics_or_an_error(
+        i_d in proptest::num::f32::ANY, i_q in proptest::num::f32::ANY, limit in proptest::num::f32::ANY,
+    ) {
+        static HUGE: CurrentRipple<'static> = CurrentRipple { per_amp_d: &HUGE_Q, per_amp_q: &HUGE_Q };
+        if let Ok(t) = total_ripple(&motor(HUGE), limit, i_d, i_q) {
+            prop_assert!(t.harmonics().iter().all(|h| h.amplitude_nm.is_finite() && h.phase_rad.is_finite()));
+        }
+    }
+}
