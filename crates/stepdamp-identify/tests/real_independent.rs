@@ -36,6 +36,7 @@
 
 mod independent;
 
+use independent::flux::FluxShape;
 use independent::servo_real::{RealMotor, ServoDrive, parse_servo_plan, run};
 use independent::{Motor, stress_friction};
 use rand::{Rng, SeedableRng};
@@ -78,7 +79,8 @@ fn real_motor(seed: u64, base: &Profile) -> (RealMotor, ServoDrive) {
         detent,
         cpr: base.encoder.counts_per_rev,
     };
-    let motor = RealMotor { mech, r: base.motor.resistance_ohm, l: base.motor.inductance_h, flux, g };
+    let flux = FluxShape { harmonics: flux, g };
+    let motor = RealMotor { mech, r: base.motor.resistance_ohm, l: base.motor.inductance_h, flux };
     let drive = ServoDrive {
         pwm_hz: base.drive.pwm_hz,
         bus_v: base.drive.bus_voltage_v,
@@ -104,9 +106,10 @@ fn truth_profile(m: &RealMotor) -> Profile {
                 .map(|&(order, amplitude_nm, phase_rad)| DetentTerm { order, amplitude_nm, phase_rad })
                 .collect();
             d.motor.flux = FluxSection {
-                phase_b_gain: m.g,
+                phase_b_gain: m.flux.g,
                 harmonics: m
                     .flux
+                    .harmonics
                     .iter()
                     .map(|&(order, ratio, phase_rad)| FluxHarmonic { order, ratio, phase_rad })
                     .collect(),
@@ -152,14 +155,14 @@ fn compare(m: &RealMotor, id: &Profile) -> String {
         let got = id.motor.detent.iter().find(|d| d.order == k).map_or((0.0, 0.0), |d| (d.amplitude_nm, d.phase_rad));
         s += &format!("A{k} {:.2}/{:.2} mN·m φ {:+.3}/{:+.3}; ", 1e3 * got.0, 1e3 * a, got.1, p);
     }
-    for &(n, h, a) in &m.flux {
+    for &(n, h, a) in &m.flux.harmonics {
         let got = id.motor.flux.harmonics.iter().find(|f| f.order == n).map_or((0.0, 0.0), |f| (f.ratio, f.phase_rad));
         s += &format!("h{n} {:.4}/{:.4} a {:+.3}/{:+.3}; ", got.0, h, got.1, a);
     }
     s + &format!(
         "g {:.4}/{:.4}; Fs {:.4}/{:.4}; J {:.3e}/{:.3e} ({:?})",
         id.motor.flux.phase_b_gain,
-        m.g,
+        m.flux.g,
         id.motor.coulomb_friction_nm,
         m.mech.fs,
         id.motor.inertia_kg_m2,
@@ -233,8 +236,8 @@ fn the_generators_torque_and_back_emf_come_from_its_flux_linkage_and_balance_ene
                 rng.random_range(-2.0..2.0),
             );
             // λ' is the derivative of λ (central difference, error ~1e-10).
-            let (d, (pa, pb), (ma, mb)) = (1e-5, m.flux_linkage(te + 1e-5), m.flux_linkage(te - 1e-5));
-            let (da, db) = m.flux_slopes(te);
+            let (d, (pa, pb), (ma, mb)) = (1e-5, m.flux.linkage(te + 1e-5), m.flux.linkage(te - 1e-5));
+            let (da, db) = m.flux.slopes(te);
             assert!((da - (pa - ma) / (2.0 * d)).abs() < 1e-8 && (db - (pb - mb) / (2.0 * d)).abs() < 1e-8);
             // The power the back-EMF takes is the motor torque times the speed.
             let (ea, eb) = m.back_emf(te, w);

@@ -28,10 +28,12 @@
 //! [`open_loop`] is its counterpart for the sensorless route: an open-loop drive
 //! (PWM bridge, PI current loop) that performs the sensorless plan CSV and logs currents and
 //! applied voltages; [`servo_real`] the servo drive of a real motor (flux harmonics, windings,
-//! applied voltages) that performs the encoder plan CSV.
+//! applied voltages) that performs the encoder plan CSV; [`flux`] the flux shape and torque
+//! ripple both take their torque and back-EMF from (the sine motor a special case).
 
 #![allow(dead_code)] // each test binary uses a part of it
 
+pub mod flux;
 pub mod open_loop;
 pub mod servo_real;
 
