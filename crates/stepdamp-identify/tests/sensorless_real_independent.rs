@@ -266,7 +266,12 @@ fn independent_real_motors_ripple_is_identified_sensorless_at_every_operating_po
     family(0..CI_MOTORS);
 }
 
-/// All [`ALL_MOTORS`] motors (release, minutes).
+/// All [`ALL_MOTORS`] motors (release, minutes). Measured: all 16 within the tolerance at
+/// the three points, worst 0.38 of it (motor 15, servo `i_q = 0.5 A`, order 4: 5.29 mN·m,
+/// identified 5.63), median 0.10; at open loop worst 0.17 (median 0.08) at both currents.
+/// The written section's `g` within 2.6·10⁻⁴, `X₃ + X₅` within 1.1·10⁻⁴ and `X₅ − X₃`
+/// within 5.7·10⁻⁴ of the motor's; no turn run left out; `J` within 2 % except motor 0
+/// (+6.3 %, Karnopp, `Fs` 18 mN·m).
 #[test]
 #[ignore = "16 motors, release: minutes (module documentation)"]
 fn sixteen_independent_real_motors_ripple_is_identified_sensorless_at_every_operating_point() {
