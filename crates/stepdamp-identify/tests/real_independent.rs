@@ -38,6 +38,7 @@ mod independent;
 
 use independent::flux::FluxShape;
 use independent::servo_real::{RealMotor, ServoDrive, parse_servo_plan, run};
+use independent::truth::{POINTS, ripple_error, truth_profile};
 use independent::{Motor, stress_friction};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -46,10 +47,7 @@ use std::f64::consts::PI;
 use stepdamp_identify::from_logs::{IdentifyOptions, encoder_route};
 use stepdamp_identify::log::{LogOptions, RunLog, parse_log};
 use stepdamp_identify::plan::{PlanOptions, plan, runs_csv};
-use stepdamp_profile::DetentTerm;
 use stepdamp_profile::Profile;
-use stepdamp_profile::flux::{FluxHarmonic, FluxSection};
-use stepdamp_profile::ripple::ripple;
 
 /// Motors of the family (seeds 0..ALL_MOTORS).
 const ALL_MOTORS: u64 = 16;
@@ -94,58 +92,17 @@ fn real_motor(seed: u64, base: &Profile) -> (RealMotor, ServoDrive) {
     (motor, drive)
 }
 
-/// A profile holding the true motor (only to cross-check the generator's ripple).
-fn truth_profile(m: &RealMotor) -> Profile {
-    Profile::preset("patent-motor")
-        .unwrap()
-        .edited("truth", |d| {
-            d.motor.detent = m
-                .mech
-                .detent
-                .iter()
-                .map(|&(order, amplitude_nm, phase_rad)| DetentTerm { order, amplitude_nm, phase_rad })
-                .collect();
-            d.motor.flux = FluxSection {
-                phase_b_gain: m.flux.g,
-                harmonics: m
-                    .flux
-                    .harmonics
-                    .iter()
-                    .map(|&(order, ratio, phase_rad)| FluxHarmonic { order, ratio, phase_rad })
-                    .collect(),
-            };
-        })
-        .unwrap()
-}
-
-/// `(order, A, φ)` as a complex number `A·e^{jφ}`.
-fn z(a: f64, p: f64) -> (f64, f64) {
-    (a * p.cos(), a * p.sin())
-}
-
 /// The worst harmonic error of `id` against the generator's truth over the three operating
-/// points, as a fraction of the tolerance max(10 %, 1 mN·m), with where it is.
-fn worst_ripple_error(m: &RealMotor, truth: &Profile, id: &Profile, hold: f64) -> (f64, String) {
-    let mut worst = (0.0, String::new());
-    for (what, i_d, i_q) in
-        [("open loop I_hold", hold, 0.0), ("open loop I_hold/2", hold / 2.0, 0.0), ("servo iq 0.5 A", 0.0, 0.5)]
-    {
-        let (t_own, t_lib, i) =
-            (m.ripple(i_d, i_q, MAX_ORDER, 256), ripple(truth, i_d, i_q).unwrap(), ripple(id, i_d, i_q).unwrap());
-        for &(k, a, p) in &t_own {
-            let find = |r: &stepdamp_profile::ripple::Ripple| {
-                r.harmonics.iter().find(|x| x.order == k).map_or((0.0, 0.0), |x| z(x.amplitude_nm, x.phase_rad))
-            };
-            let (t, l, got) = (z(a, p), find(&t_lib), find(&i));
-            assert!((t.0 - l.0).hypot(t.1 - l.1) < 1e-9, "{what}, order {k}: generator {t:?}, stepdamp_profile {l:?}");
-            let err = (t.0 - got.0).hypot(t.1 - got.1) / (0.1 * a).max(1e-3);
-            if err > worst.0 {
-                let msg = format!("{what}, order {k}: {:.2} mN·m, identified {:.2}", 1e3 * a, 1e3 * got.0.hypot(got.1));
-                worst = (err, msg);
-            }
-        }
-    }
-    worst
+/// points ([`POINTS`]), as a fraction of the tolerance max(10 %, 1 mN·m), with where it is.
+fn worst_ripple_error(m: &RealMotor, id: &Profile, hold: f64) -> (f64, String) {
+    let truth = truth_profile(&Profile::preset("patent-motor").unwrap(), &m.mech.detent, &m.flux);
+    POINTS
+        .iter()
+        .map(|&(what, d_per_hold, i_q)| {
+            let i_d = d_per_hold * hold;
+            ripple_error(&m.ripple(i_d, i_q, MAX_ORDER, 256), &truth, id, i_d, i_q, what)
+        })
+        .fold((0.0, String::new()), |a, b| if b.0 > a.0 { b } else { a })
 }
 
 /// The identified terms against the truth, for the print-out.
@@ -206,7 +163,7 @@ fn family(seeds: std::ops::Range<u64>, j: BaseInertia) {
             let (report, model, with_flux) = encoder_route(&logs, &user, &IdentifyOptions::new(&[1, 2, 4])).unwrap();
             assert!(report.flux.is_some(), "motor {seed}: no flux section identified");
             let id = model.apply_to(with_flux.as_ref().unwrap(), Some("identified"), "identified").unwrap();
-            let (err, at) = worst_ripple_error(&m, &truth_profile(&m), &id, base.drive.holding_current_a);
+            let (err, at) = worst_ripple_error(&m, &id, base.drive.holding_current_a);
             let f = &report.fit;
             let inertia = f.decisions.iter().map(|d| d.to_string()).find(|d| d.starts_with("J ")).unwrap_or_default();
             (seed, err, format!("{at}; {}; {inertia}", compare(&m, &id)))

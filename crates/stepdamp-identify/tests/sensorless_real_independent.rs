@@ -30,6 +30,7 @@ mod independent;
 
 use independent::flux::FluxShape;
 use independent::open_loop::{Drive, Friction, Motor, parse_plan, patent_drive, run};
+use independent::truth::{POINTS, ripple_error, truth_profile, z};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -38,9 +39,8 @@ use stepdamp_identify::sensorless::flux::FluxOptions;
 use stepdamp_identify::sensorless::log::parse_sensorless_log;
 use stepdamp_identify::sensorless::plan::{SensorlessPlanOptions, plan};
 use stepdamp_identify::sensorless::{fit_options, identify};
-use stepdamp_profile::flux::{FluxHarmonic, FluxSection};
-use stepdamp_profile::ripple::{Ripple, ripple};
-use stepdamp_profile::{DetentTerm, Profile};
+use stepdamp_profile::Profile;
+use stepdamp_profile::flux::FluxSection;
 
 /// Motors CI runs (seeds 0..CI_MOTORS).
 const CI_MOTORS: u64 = 2;
@@ -48,10 +48,6 @@ const CI_MOTORS: u64 = 2;
 const ALL_MOTORS: u64 = 16;
 /// Highest ripple order compared.
 const MAX_ORDER: u16 = 8;
-/// The operating points: name, `i_d` per unit of `I_hold`, `i_q` (A).
-const POINTS: [(&str, f64, f64); 3] =
-    [("open loop I_hold", 1.0, 0.0), ("open loop I_hold/2", 0.5, 0.0), ("servo iq 0.5 A", 0.0, 0.5)];
-
 /// The user's base: `patent-motor` without detent.
 fn user_base() -> Profile {
     Profile::preset("patent-motor").unwrap().edited("patent-motor", |d| d.motor.detent.clear()).unwrap()
@@ -83,32 +79,6 @@ fn real_motor(seed: u64, base: &Profile) -> Motor {
     }
 }
 
-/// A profile holding the true motor (only to cross-check the generator's ripple).
-fn truth_profile(m: &Motor, base: &Profile) -> Profile {
-    base.edited("truth", |d| {
-        d.motor.detent = m
-            .detent
-            .iter()
-            .map(|&(order, amplitude_nm, phase_rad)| DetentTerm { order, amplitude_nm, phase_rad })
-            .collect();
-        d.motor.flux = FluxSection {
-            phase_b_gain: m.flux.g,
-            harmonics: m
-                .flux
-                .harmonics
-                .iter()
-                .map(|&(order, ratio, phase_rad)| FluxHarmonic { order, ratio, phase_rad })
-                .collect(),
-        };
-    })
-    .unwrap()
-}
-
-/// `A·e^{jφ}` as `(re, im)`.
-fn z(a: f64, p: f64) -> (f64, f64) {
-    (a * p.cos(), a * p.sin())
-}
-
 /// The worst harmonic error of `id` against the generator's truth at each of [`POINTS`], as a
 /// fraction of the tolerance max(10 %, 1 mN·m), with where it is.
 fn ripple_errors(m: &Motor, truth: &Profile, id: &Profile, hold: f64) -> Vec<(f64, String)> {
@@ -116,24 +86,7 @@ fn ripple_errors(m: &Motor, truth: &Profile, id: &Profile, hold: f64) -> Vec<(f6
         .iter()
         .map(|&(what, d_per_hold, i_q)| {
             let i_d = d_per_hold * hold;
-            let (own, lib, got) =
-                (m.ripple(i_d, i_q, MAX_ORDER, 256), ripple(truth, i_d, i_q).unwrap(), ripple(id, i_d, i_q).unwrap());
-            let find = |r: &Ripple, k: u16| {
-                r.harmonics.iter().find(|x| x.order == k).map_or((0.0, 0.0), |x| z(x.amplitude_nm, x.phase_rad))
-            };
-            let mut worst = (0.0, String::new());
-            for &(k, a, p) in &own {
-                let (t, l, i) = (z(a, p), find(&lib, k), find(&got, k));
-                assert!(
-                    (t.0 - l.0).hypot(t.1 - l.1) < 1e-9,
-                    "{what}, order {k}: generator {t:?}, stepdamp_profile {l:?}"
-                );
-                let err = (t.0 - i.0).hypot(t.1 - i.1) / (0.1 * a).max(1e-3);
-                if err > worst.0 {
-                    worst = (err, format!("order {k}: {:.2} mN·m, identified {:.2}", 1e3 * a, 1e3 * i.0.hypot(i.1)));
-                }
-            }
-            worst
+            ripple_error(&m.ripple(i_d, i_q, MAX_ORDER, 256), truth, id, i_d, i_q, what)
         })
         .collect()
 }
@@ -190,7 +143,7 @@ fn outcome(seed: u64) -> Outcome {
     let f = identify(&logs, &base, &fit_options(&base, &[1, 2, 4]), &FluxOptions::default()).unwrap();
     let with = base.edited(&base.name, |d| d.motor.flux = f.flux.clone()).unwrap();
     let id = f.model().apply_to(&with, Some("sensorless"), "sensorless.toml").unwrap();
-    let truth = truth_profile(&m, &base);
+    let truth = truth_profile(&base, &m.detent, &m.flux);
     let (t3, t5, w3, w5) = (x(&truth.motor.flux, 3), x(&truth.motor.flux, 5), x(&f.flux, 3), x(&f.flux, 5));
     let about = format!(
         "{}, J ×{:.2}, Fs {:.1} mN·m, h3 {:.4}, h5 {:.4}, g {:+.4}, |δ| ≤ {max_delta:.2} rad, J identified {:+.1} %",
@@ -219,8 +172,7 @@ fn outcome(seed: u64) -> Outcome {
 fn family(seeds: std::ops::Range<u64>) {
     let results: Vec<Outcome> = seeds.into_par_iter().map(outcome).collect();
     for r in &results {
-        let at: Vec<String> =
-            POINTS.iter().zip(&r.errors).map(|(p, e)| format!("{} {:.2} ({})", p.0, e.0, e.1)).collect();
+        let at: Vec<String> = r.errors.iter().map(|e| format!("{:.2} ({})", e.0, e.1)).collect();
         println!(
             "motor {:2} ({}): g error {:+.5}, X3+X5 error {:.5}, X5-X3 error {:.5}; ripple {}; turn passes {}, turn runs left out: {:?}",
             r.seed,

@@ -29,13 +29,15 @@
 //! (PWM bridge, PI current loop) that performs the sensorless plan CSV and logs currents and
 //! applied voltages; [`servo_real`] the servo drive of a real motor (flux harmonics, windings,
 //! applied voltages) that performs the encoder plan CSV; [`flux`] the flux shape and torque
-//! ripple both take their torque and back-EMF from (the sine motor a special case).
+//! ripple both take their torque and back-EMF from (the sine motor a special case);
+//! [`truth`] the true motor as a profile and the ripple comparison the tests make.
 
 #![allow(dead_code)] // each test binary uses a part of it
 
 pub mod flux;
 pub mod open_loop;
 pub mod servo_real;
+pub mod truth;
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
