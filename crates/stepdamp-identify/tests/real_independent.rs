@@ -36,10 +36,9 @@
 
 mod independent;
 
-use independent::flux::FluxShape;
 use independent::servo_real::{RealMotor, ServoDrive, parse_servo_plan, run};
 use independent::truth::{POINTS, ripple_error, truth_profile};
-use independent::{Motor, stress_friction};
+use independent::{Motor, RealDraw, real_draw, stress_friction};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -58,13 +57,7 @@ const MAX_ORDER: u16 = 8;
 /// drive constants are `base`'s.
 fn real_motor(seed: u64, base: &Profile) -> (RealMotor, ServoDrive) {
     let mut rng = ChaCha8Rng::seed_from_u64(0x4ea1_0000 + seed);
-    let mut phase = || rng.random_range(-PI..PI);
-    let (p4, p2, p1, a3, a5) = (phase(), phase(), phase(), phase(), phase());
-    let j = base.motor.inertia_kg_m2 * rng.random_range(0.5..2.0);
-    let fs = rng.random_range(0.005..0.020);
-    let detent = [(4u16, p4), (2, p2), (1, p1)].iter().map(|&(k, p)| (k, rng.random_range(0.004..0.030), p)).collect();
-    let g = rng.random_range(-0.05..0.05);
-    let flux = vec![(3, rng.random_range(0.0..0.02), a3), (5, rng.random_range(0.0..0.01), a5)];
+    let RealDraw { j, fs, detent, flux } = real_draw(&mut rng, base.motor.inertia_kg_m2);
     let friction = stress_friction(seed, fs, &mut rng);
     let mech = Motor {
         nr: base.motor.pole_pairs,
@@ -77,7 +70,6 @@ fn real_motor(seed: u64, base: &Profile) -> (RealMotor, ServoDrive) {
         detent,
         cpr: base.encoder.counts_per_rev,
     };
-    let flux = FluxShape { harmonics: flux, g };
     let motor = RealMotor { mech, r: base.motor.resistance_ohm, l: base.motor.inductance_h, flux };
     let drive = ServoDrive {
         pwm_hz: base.drive.pwm_hz,

@@ -28,13 +28,12 @@
 
 mod independent;
 
-use independent::flux::FluxShape;
 use independent::open_loop::{Drive, Friction, Motor, parse_plan, patent_drive, run};
 use independent::truth::{POINTS, ripple_error, truth_profile, z};
+use independent::{RealDraw, real_draw};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
-use std::f64::consts::PI;
 use stepdamp_identify::sensorless::flux::FluxOptions;
 use stepdamp_identify::sensorless::log::parse_sensorless_log;
 use stepdamp_identify::sensorless::plan::{SensorlessPlanOptions, plan};
@@ -56,13 +55,7 @@ fn user_base() -> Profile {
 /// Random real motor `seed` (module documentation); winding, `Km`, `Nr` and `D` are `base`'s.
 fn real_motor(seed: u64, base: &Profile) -> Motor {
     let mut rng = ChaCha8Rng::seed_from_u64(0x5e41_0000 + seed);
-    let mut phase = || rng.random_range(-PI..PI);
-    let (p4, p2, p1, a3, a5) = (phase(), phase(), phase(), phase(), phase());
-    let j = base.motor.inertia_kg_m2 * rng.random_range(0.5..2.0);
-    let fs = rng.random_range(0.005..0.020);
-    let detent = [(4u16, p4), (2, p2), (1, p1)].iter().map(|&(k, p)| (k, rng.random_range(0.004..0.030), p)).collect();
-    let g = rng.random_range(-0.05..0.05);
-    let harmonics = vec![(3, rng.random_range(0.0..0.02), a3), (5, rng.random_range(0.0..0.01), a5)];
+    let RealDraw { j, fs, detent, flux } = real_draw(&mut rng, base.motor.inertia_kg_m2);
     let friction =
         if seed % 2 == 0 { Friction::Karnopp } else { Friction::Smooth { creep_rad_s: rng.random_range(0.01..0.05) } };
     Motor {
@@ -75,7 +68,7 @@ fn real_motor(seed: u64, base: &Profile) -> Motor {
         fs,
         friction,
         detent,
-        flux: FluxShape { harmonics, g },
+        flux,
     }
 }
 
