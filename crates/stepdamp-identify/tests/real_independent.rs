@@ -37,7 +37,8 @@
 mod independent;
 
 use independent::servo_real::{RealMotor, ServoDrive, parse_servo_plan, run};
-use independent::{Motor, stress_friction};
+use independent::truth::{POINTS, ripple_error, truth_profile};
+use independent::{Motor, RealDraw, real_draw, stress_friction};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -45,10 +46,7 @@ use std::f64::consts::PI;
 use stepdamp_identify::from_logs::{IdentifyOptions, encoder_route};
 use stepdamp_identify::log::{LogOptions, RunLog, parse_log};
 use stepdamp_identify::plan::{PlanOptions, plan, runs_csv};
-use stepdamp_profile::DetentTerm;
 use stepdamp_profile::Profile;
-use stepdamp_profile::flux::{FluxHarmonic, FluxSection};
-use stepdamp_profile::ripple::ripple;
 
 /// Motors of the family (seeds 0..ALL_MOTORS).
 const ALL_MOTORS: u64 = 16;
@@ -59,13 +57,7 @@ const MAX_ORDER: u16 = 8;
 /// drive constants are `base`'s.
 fn real_motor(seed: u64, base: &Profile) -> (RealMotor, ServoDrive) {
     let mut rng = ChaCha8Rng::seed_from_u64(0x4ea1_0000 + seed);
-    let mut phase = || rng.random_range(-PI..PI);
-    let (p4, p2, p1, a3, a5) = (phase(), phase(), phase(), phase(), phase());
-    let j = base.motor.inertia_kg_m2 * rng.random_range(0.5..2.0);
-    let fs = rng.random_range(0.005..0.020);
-    let detent = [(4u16, p4), (2, p2), (1, p1)].iter().map(|&(k, p)| (k, rng.random_range(0.004..0.030), p)).collect();
-    let g = rng.random_range(-0.05..0.05);
-    let flux = vec![(3, rng.random_range(0.0..0.02), a3), (5, rng.random_range(0.0..0.01), a5)];
+    let RealDraw { j, fs, detent, flux } = real_draw(&mut rng, base.motor.inertia_kg_m2);
     let friction = stress_friction(seed, fs, &mut rng);
     let mech = Motor {
         nr: base.motor.pole_pairs,
@@ -78,7 +70,7 @@ fn real_motor(seed: u64, base: &Profile) -> (RealMotor, ServoDrive) {
         detent,
         cpr: base.encoder.counts_per_rev,
     };
-    let motor = RealMotor { mech, r: base.motor.resistance_ohm, l: base.motor.inductance_h, flux, g };
+    let motor = RealMotor { mech, r: base.motor.resistance_ohm, l: base.motor.inductance_h, flux };
     let drive = ServoDrive {
         pwm_hz: base.drive.pwm_hz,
         bus_v: base.drive.bus_voltage_v,
@@ -92,57 +84,17 @@ fn real_motor(seed: u64, base: &Profile) -> (RealMotor, ServoDrive) {
     (motor, drive)
 }
 
-/// A profile holding the true motor (only to cross-check the generator's ripple).
-fn truth_profile(m: &RealMotor) -> Profile {
-    Profile::preset("patent-motor")
-        .unwrap()
-        .edited("truth", |d| {
-            d.motor.detent = m
-                .mech
-                .detent
-                .iter()
-                .map(|&(order, amplitude_nm, phase_rad)| DetentTerm { order, amplitude_nm, phase_rad })
-                .collect();
-            d.motor.flux = FluxSection {
-                phase_b_gain: m.g,
-                harmonics: m
-                    .flux
-                    .iter()
-                    .map(|&(order, ratio, phase_rad)| FluxHarmonic { order, ratio, phase_rad })
-                    .collect(),
-            };
-        })
-        .unwrap()
-}
-
-/// `(order, A, φ)` as a complex number `A·e^{jφ}`.
-fn z(a: f64, p: f64) -> (f64, f64) {
-    (a * p.cos(), a * p.sin())
-}
-
 /// The worst harmonic error of `id` against the generator's truth over the three operating
-/// points, as a fraction of the tolerance max(10 %, 1 mN·m), with where it is.
-fn worst_ripple_error(m: &RealMotor, truth: &Profile, id: &Profile, hold: f64) -> (f64, String) {
-    let mut worst = (0.0, String::new());
-    for (what, i_d, i_q) in
-        [("open loop I_hold", hold, 0.0), ("open loop I_hold/2", hold / 2.0, 0.0), ("servo iq 0.5 A", 0.0, 0.5)]
-    {
-        let (t_own, t_lib, i) =
-            (m.ripple(i_d, i_q, MAX_ORDER, 256), ripple(truth, i_d, i_q).unwrap(), ripple(id, i_d, i_q).unwrap());
-        for &(k, a, p) in &t_own {
-            let find = |r: &stepdamp_profile::ripple::Ripple| {
-                r.harmonics.iter().find(|x| x.order == k).map_or((0.0, 0.0), |x| z(x.amplitude_nm, x.phase_rad))
-            };
-            let (t, l, got) = (z(a, p), find(&t_lib), find(&i));
-            assert!((t.0 - l.0).hypot(t.1 - l.1) < 1e-9, "{what}, order {k}: generator {t:?}, stepdamp_profile {l:?}");
-            let err = (t.0 - got.0).hypot(t.1 - got.1) / (0.1 * a).max(1e-3);
-            if err > worst.0 {
-                let msg = format!("{what}, order {k}: {:.2} mN·m, identified {:.2}", 1e3 * a, 1e3 * got.0.hypot(got.1));
-                worst = (err, msg);
-            }
-        }
-    }
-    worst
+/// points ([`POINTS`]), as a fraction of the tolerance max(10 %, 1 mN·m), with where it is.
+fn worst_ripple_error(m: &RealMotor, id: &Profile, hold: f64) -> (f64, String) {
+    let truth = truth_profile(&Profile::preset("patent-motor").unwrap(), &m.mech.detent, &m.flux);
+    POINTS
+        .iter()
+        .map(|&(what, d_per_hold, i_q)| {
+            let i_d = d_per_hold * hold;
+            ripple_error(&m.ripple(i_d, i_q, MAX_ORDER, 256), &truth, id, i_d, i_q, what)
+        })
+        .fold((0.0, String::new()), |a, b| if b.0 > a.0 { b } else { a })
 }
 
 /// The identified terms against the truth, for the print-out.
@@ -152,14 +104,14 @@ fn compare(m: &RealMotor, id: &Profile) -> String {
         let got = id.motor.detent.iter().find(|d| d.order == k).map_or((0.0, 0.0), |d| (d.amplitude_nm, d.phase_rad));
         s += &format!("A{k} {:.2}/{:.2} mN·m φ {:+.3}/{:+.3}; ", 1e3 * got.0, 1e3 * a, got.1, p);
     }
-    for &(n, h, a) in &m.flux {
+    for &(n, h, a) in &m.flux.harmonics {
         let got = id.motor.flux.harmonics.iter().find(|f| f.order == n).map_or((0.0, 0.0), |f| (f.ratio, f.phase_rad));
         s += &format!("h{n} {:.4}/{:.4} a {:+.3}/{:+.3}; ", got.0, h, got.1, a);
     }
     s + &format!(
         "g {:.4}/{:.4}; Fs {:.4}/{:.4}; J {:.3e}/{:.3e} ({:?})",
         id.motor.flux.phase_b_gain,
-        m.g,
+        m.flux.g,
         id.motor.coulomb_friction_nm,
         m.mech.fs,
         id.motor.inertia_kg_m2,
@@ -203,7 +155,7 @@ fn family(seeds: std::ops::Range<u64>, j: BaseInertia) {
             let (report, model, with_flux) = encoder_route(&logs, &user, &IdentifyOptions::new(&[1, 2, 4])).unwrap();
             assert!(report.flux.is_some(), "motor {seed}: no flux section identified");
             let id = model.apply_to(with_flux.as_ref().unwrap(), Some("identified"), "identified").unwrap();
-            let (err, at) = worst_ripple_error(&m, &truth_profile(&m), &id, base.drive.holding_current_a);
+            let (err, at) = worst_ripple_error(&m, &id, base.drive.holding_current_a);
             let f = &report.fit;
             let inertia = f.decisions.iter().map(|d| d.to_string()).find(|d| d.starts_with("J ")).unwrap_or_default();
             (seed, err, format!("{at}; {}; {inertia}", compare(&m, &id)))
@@ -233,8 +185,8 @@ fn the_generators_torque_and_back_emf_come_from_its_flux_linkage_and_balance_ene
                 rng.random_range(-2.0..2.0),
             );
             // λ' is the derivative of λ (central difference, error ~1e-10).
-            let (d, (pa, pb), (ma, mb)) = (1e-5, m.flux_linkage(te + 1e-5), m.flux_linkage(te - 1e-5));
-            let (da, db) = m.flux_slopes(te);
+            let (d, (pa, pb), (ma, mb)) = (1e-5, m.flux.linkage(te + 1e-5), m.flux.linkage(te - 1e-5));
+            let (da, db) = m.flux.slopes(te);
             assert!((da - (pa - ma) / (2.0 * d)).abs() < 1e-8 && (db - (pb - mb) / (2.0 * d)).abs() < 1e-8);
             // The power the back-EMF takes is the motor torque times the speed.
             let (ea, eb) = m.back_emf(te, w);

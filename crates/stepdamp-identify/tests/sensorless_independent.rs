@@ -15,7 +15,8 @@
 
 mod independent;
 
-use independent::open_loop::{Drive, Friction, Motor, PLAN_HEADER, parse_plan, run};
+use independent::flux::FluxShape;
+use independent::open_loop::{Friction, Motor, PLAN_HEADER, parse_plan, patent_drive, run};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -31,22 +32,6 @@ use stepdamp_profile::Profile;
 /// Motors checked (motor 0 and `MOTORS − 1` random ones).
 const MOTORS: u64 = 16;
 
-/// The drive of every motor: its own current-loop tuning (1.2 kHz on the datasheet's `R`
-/// and `L`), 5 mA of sensor noise, PWM edges simulated.
-fn drive() -> Drive {
-    Drive {
-        pwm_hz: 20_000.0,
-        bus_v: 48.0,
-        hold_a: 1.9,
-        current_hz: 1200.0,
-        r_nominal: 0.9,
-        l_nominal: 2.5e-3,
-        noise_a: 0.005,
-        offset_a: [0.003, -0.002],
-        switching: true,
-    }
-}
-
 /// The true motor of `seed` and the base profile its identification starts from.
 fn motor(seed: u64) -> (Motor, Profile) {
     let mut rng = ChaCha8Rng::seed_from_u64(0x0de1_6000 + seed);
@@ -61,6 +46,7 @@ fn motor(seed: u64) -> (Motor, Profile) {
         fs: 0.01,
         friction: Friction::Karnopp,
         detent: vec![(4, 0.02, 0.0), (2, 0.012, 0.7), (1, 0.008, -1.1)],
+        flux: FluxShape::sine(),
     };
     if seed > 0 {
         m.detent =
@@ -104,7 +90,7 @@ fn check(seed: u64) -> Outcome {
         .iter()
         .enumerate()
         .map(|(i, r)| {
-            let (text, stats) = run(&m, &drive(), r, 1000 * seed + i as u64);
+            let (text, stats) = run(&m, &patent_drive(), r, 1000 * seed + i as u64);
             max_delta = max_delta.max(stats.max_load_angle_rad);
             parse_sensorless_log(text.as_bytes(), &r.run).unwrap()
         })

@@ -28,12 +28,16 @@
 //! [`open_loop`] is its counterpart for the sensorless route: an open-loop drive
 //! (PWM bridge, PI current loop) that performs the sensorless plan CSV and logs currents and
 //! applied voltages; [`servo_real`] the servo drive of a real motor (flux harmonics, windings,
-//! applied voltages) that performs the encoder plan CSV.
+//! applied voltages) that performs the encoder plan CSV; [`flux`] the flux shape and torque
+//! ripple both take their torque and back-EMF from (the sine motor a special case);
+//! [`truth`] the true motor as a profile and the ripple comparison the tests make.
 
 #![allow(dead_code)] // each test binary uses a part of it
 
+pub mod flux;
 pub mod open_loop;
 pub mod servo_real;
+pub mod truth;
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -156,6 +160,34 @@ pub fn stress_friction(seed: u64, fs: f64, rng: &mut ChaCha8Rng) -> Friction {
             stribeck_rad_s: rng.random_range(0.01..0.05),
         }
     }
+}
+
+/// The random part of a real motor of the real-motor family
+/// (docs/identification.md#the-real-motor-family), as both independent real-motor tests
+/// draw it.
+#[derive(Clone, Debug)]
+pub struct RealDraw {
+    /// Inertia, kg·m²: ×0.5–2 of the base's.
+    pub j: f64,
+    /// Coulomb friction, N·m: 5–20 mN·m.
+    pub fs: f64,
+    /// Detent orders 4, 2, 1 `(order, A N·m, φ rad)`: 4–30 mN·m at random phases.
+    pub detent: Vec<(u16, f64, f64)>,
+    /// A third flux harmonic of 0–2 % and a fifth of 0–1 % at random phases, `g` ±5 %.
+    pub flux: flux::FluxShape,
+}
+
+/// Draws a [`RealDraw`] from `rng` for a base of inertia `j_base` (kg·m²); the caller draws
+/// the friction law from `rng` after it.
+pub fn real_draw(rng: &mut ChaCha8Rng, j_base: f64) -> RealDraw {
+    let mut phase = || rng.random_range(-PI..PI);
+    let (p4, p2, p1, a3, a5) = (phase(), phase(), phase(), phase(), phase());
+    let j = j_base * rng.random_range(0.5..2.0);
+    let fs = rng.random_range(0.005..0.020);
+    let detent = [(4u16, p4), (2, p2), (1, p1)].iter().map(|&(k, p)| (k, rng.random_range(0.004..0.030), p)).collect();
+    let g = rng.random_range(-0.05..0.05);
+    let harmonics = vec![(3, rng.random_range(0.0..0.02), a3), (5, rng.random_range(0.0..0.01), a5)];
+    RealDraw { j, fs, detent, flux: flux::FluxShape { harmonics, g } }
 }
 
 /// One run: `speed_rad_s` (sign = direction) held for `steady_s` after 50 ms at rest and a

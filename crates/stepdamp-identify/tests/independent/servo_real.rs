@@ -5,10 +5,9 @@
 //! and ripple code. It reads the encoder plan CSV (`identify plan --format csv`) as text and
 //! performs every servo row of it, the back-EMF run included. Its own models:
 //!
-//! * **Flux linkage** of the magnet in each winding, per unit of `Km/Nr`, `θe = Nr·θ`:
-//!   `λ_a(θe) = cos θe + Σ_n h_n·cos(n·θe + a_n)`,
-//!   `λ_b(θe) = (1 + g)·[sin θe + Σ_n h_n·cos(n·θe + a_n − n·π/2)]` (phase b is phase a a
-//!   quarter electrical period later, times `1 + g`).
+//! * **Flux linkage** of the magnet in each winding, per unit of `Km/Nr`, `θe = Nr·θ`: the
+//!   motor's [`FluxShape`] ([`super::flux`]: `λ_a(θe) = cos θe + Σ_n h_n·cos(n·θe + a_n)`,
+//!   `λ_b(θe) = (1 + g)·[sin θe + Σ_n h_n·cos(n·θe + a_n − n·π/2)]`).
 //! * **Energy**: with the magnet flux linked to winding `x`, `ψ_x = (Km/Nr)·λ_x(θe)`, the
 //!   magnetic co-energy is `W' = i_a·ψ_a + i_b·ψ_b + W_m(θ)` (`W_m` the magnet's own
 //!   energy, whose derivative is the detent). The torque on the rotor is `∂W'/∂θ` at
@@ -31,11 +30,12 @@
 //!   the noisy phase currents sampled at `t_s`, their Park transform at the encoder angle,
 //!   the command, and the mean voltage applied over `[t_s, t_s + Ts)`.
 
+use super::flux::FluxShape;
 use super::open_loop::{PLAN_HEADER, PlanRow, command};
 use super::{Motor, gauss, implicit_speed};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use std::f64::consts::{FRAC_PI_2, TAU};
+use std::f64::consts::TAU;
 use std::fmt::Write as _;
 
 /// Integration sub-steps per control period.
@@ -50,71 +50,27 @@ pub struct RealMotor {
     pub r: f64,
     /// Phase inductance, H.
     pub l: f64,
-    /// Odd flux harmonics `(n, h_n, a_n)` of phase a, per unit of the fundamental.
-    pub flux: Vec<(u16, f64, f64)>,
-    /// `g`: phase b's flux is `1 + g` times phase a's.
-    pub g: f64,
+    /// The magnet's flux shape: odd harmonics of phase a and phase b's gain `g`.
+    pub flux: FluxShape,
 }
 
 impl RealMotor {
-    /// `(λ_a, λ_b)`: the per-unit flux linkages at `θe` (module documentation).
-    pub fn flux_linkage(&self, te: f64) -> (f64, f64) {
-        let (mut la, mut lb) = (te.cos(), te.sin());
-        for &(n, h, a) in &self.flux {
-            let nf = f64::from(n);
-            la += h * (nf * te + a).cos();
-            lb += h * (nf * te + a - nf * FRAC_PI_2).cos();
-        }
-        (la, (1.0 + self.g) * lb)
-    }
-
-    /// `(λ_a', λ_b')`: the derivatives of the per-unit flux linkages by `θe`.
-    pub fn flux_slopes(&self, te: f64) -> (f64, f64) {
-        let (mut da, mut db) = (-te.sin(), te.cos());
-        for &(n, h, a) in &self.flux {
-            let nf = f64::from(n);
-            da -= nf * h * (nf * te + a).sin();
-            db -= nf * h * (nf * te + a - nf * FRAC_PI_2).sin();
-        }
-        (da, (1.0 + self.g) * db)
-    }
-
     /// Back-EMF `(e_a, e_b) = Km·ω·(λ_a', λ_b')` at `θe` and speed `ω` (rad/s), V.
     pub fn back_emf(&self, te: f64, w: f64) -> (f64, f64) {
-        let (da, db) = self.flux_slopes(te);
+        let (da, db) = self.flux.slopes(te);
         (self.mech.km * w * da, self.mech.km * w * db)
     }
 
     /// Torque on the rotor at `θe` and phase currents `i_a`, `i_b` (motor and detent), N·m.
     pub fn torque(&self, te: f64, ia: f64, ib: f64) -> f64 {
-        let (da, db) = self.flux_slopes(te);
+        let (da, db) = self.flux.slopes(te);
         self.mech.km * (ia * da + ib * db) - self.mech.detent(te / f64::from(self.mech.nr))
     }
 
-    /// The torque ripple at rotor-frame currents `(i_d, i_q)` (`i_a = i_d cos θe − i_q sin θe`,
-    /// `i_b = i_d sin θe + i_q cos θe`): `(order, A, φ)` with the torque's periodic part
-    /// `−Σ A sin(k·θe + φ)`, orders 1..=`max_order`, by a DFT over `points` angles.
+    /// The torque ripple at rotor-frame currents `(i_d, i_q)`, A ([`super::flux::ripple`] of
+    /// [`Self::torque`]): `(order, A, φ)`, torque on the rotor `−Σ A sin(k·θe + φ)`.
     pub fn ripple(&self, i_d: f64, i_q: f64, max_order: u16, points: usize) -> Vec<(u16, f64, f64)> {
-        let tau: Vec<(f64, f64)> = (0..points)
-            .map(|j| {
-                let te = TAU * j as f64 / points as f64;
-                let (s, c) = te.sin_cos();
-                (te, self.torque(te, i_d * c - i_q * s, i_d * s + i_q * c))
-            })
-            .collect();
-        (1..=max_order)
-            .map(|k| {
-                let kf = f64::from(k);
-                let (mut bs, mut bc) = (0.0, 0.0);
-                for &(te, t) in &tau {
-                    bs += t * (kf * te).sin();
-                    bc += t * (kf * te).cos();
-                }
-                let (bs, bc) = (2.0 * bs / points as f64, 2.0 * bc / points as f64);
-                // −A sin(kθ + φ) = −A cos φ · sin kθ − A sin φ · cos kθ.
-                (k, bs.hypot(bc), (-bc).atan2(-bs))
-            })
-            .collect()
+        super::flux::ripple(|te, ia, ib| self.torque(te, ia, ib), i_d, i_q, max_order, points)
     }
 }
 
@@ -195,7 +151,7 @@ impl RealMotor {
     fn step(&self, x: &mut State, v: (f64, f64), h: f64) {
         let nr = f64::from(self.mech.nr);
         let te_mid = nr * (x.theta + 0.5 * h * x.w);
-        let (da, db) = self.flux_slopes(te_mid);
+        let (da, db) = self.flux.slopes(te_mid);
         let (ea, eb) = self.back_emf(te_mid, x.w);
         let decay = (-self.r * h / self.l).exp();
         let settle = |i: f64, v: f64, e: f64| (v - e) / self.r + (i - (v - e) / self.r) * decay;
