@@ -47,6 +47,9 @@ pub struct SensorlessReport {
     pub turn: Option<Box<super::turn::TurnFit>>,
     /// How many turn-run measurements were applied to the section written.
     pub turn_passes: usize,
+    /// Whether the section the angles were estimated with has a third or a fifth: without
+    /// either (a sine motor) the turn runs have nothing to split.
+    pub turn_has_split: bool,
     /// The fit's report, as on the servo route.
     pub fit: FitReport,
 }
@@ -117,6 +120,7 @@ impl SensorlessReport {
             turn_logs: f.turn_logs.clone(),
             turn: f.turn.clone().map(Box::new),
             turn_passes: f.turn_passes,
+            turn_has_split: f.flux.harmonics.iter().any(|h| h.order == 3 || h.order == 5),
             fit: FitReport::new(base, f.fit.clone()),
         }
     }
@@ -182,6 +186,7 @@ impl std::fmt::Display for SensorlessReport {
                 t.logs, t.ratio.value, t.ratio.ci95, t.phase_rad.value
             )?;
             match self.turn_passes {
+                0 if !self.turn_has_split => writeln!(f, "nothing to split: the flux section has no third or fifth")?,
                 0 => writeln!(
                     f,
                     "within the noise of the {:.0} % split, which stands",
