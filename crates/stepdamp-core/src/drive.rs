@@ -56,6 +56,10 @@ pub struct State {
     last_current: Ab,
     /// Load-angle observer (open loop, estimated compensation).
     pub observer: ObserverState,
+    /// The back-EMF of the ripple's current parts fed forward into this period's current
+    /// loop, V, control frame ([`crate::ripple::ripple_back_emf_v`]); zero unless the
+    /// estimated law runs with a model that has current parts.
+    pub ripple_emf_v: Dq,
     /// Periods whose current sample was rejected (non-finite or beyond 100× the current
     /// limit), in total (saturating); the previous good sample was used instead, or, from
     /// [`CURRENT_SENSOR_FAULT_PERIODS`] in a row on, zero volts.
@@ -282,6 +286,10 @@ fn compensation_current(cfg: &Config, st: &mut State, at: &CompensationAngle, op
     if at.observed {
         // The back-EMF's lead at this rotor angle, for the observer's next period.
         st.observer.emf_angle_error_rad = -v.per_amp_d / crate::at_least(1.0 - v.per_amp_q, crate::ripple::MIN_DIVISOR);
+        // Its harmonics, which the current loop cannot follow, fed forward (at the
+        // commanded speed and the measured torque constant).
+        let km_omega = st.observer.km_hat * st.speed_cmd_rad_s;
+        st.ripple_emf_v = crate::ripple::ripple_back_emf_v(&v, km_omega, sd, cd);
     }
     at.km_gain * lead(v.current_a, v.slope, v.curvature) / crate::ripple::divisor(&v, sd, cd)
 }
@@ -319,7 +327,12 @@ fn current_loop(cfg: &Config, st: &mut State, i_dq_cmd: Dq, i_dq: Dq, sin: f32, 
         Some(obs) => obs.current_pi(&cfg.pi, &st.observer),
         None => cfg.pi,
     };
-    let v_unlim = Dq { d: pi.output(st.integral_d_v, e.d), q: pi.output(st.integral_q_v, e.q) };
+    let mut v_unlim = Dq { d: pi.output(st.integral_d_v, e.d), q: pi.output(st.integral_q_v, e.q) };
+    if cfg.ripple.is_current_dependent() {
+        // The ripple's back-EMF (zero in servo and before the observer runs).
+        v_unlim.d += st.ripple_emf_v.d;
+        v_unlim.q += st.ripple_emf_v.q;
+    }
     let v_ab_req = inverse_park(v_unlim, sin, cos);
     let modulated = cfg.topology.modulate_with_inverse(v_ab_req, cfg.bus_voltage_v, cfg.inv_bus_voltage);
     let limited = modulated.scale < 1.0;

@@ -48,6 +48,7 @@
 use crate::config::{Compensation, ConfigError, Mode, MotorModel, Reason};
 use crate::detent::{Harmonic, HarmonicSeries, MAX_HARMONIC_ORDER};
 use crate::limits::{CURRENT_RIPPLE_NM_PER_A, CURRENT_RIPPLE_PHASE_RAD};
+use crate::park::Dq;
 
 /// Smallest divisor of the operating-point laws (module doc): the compensation is at most
 /// twice the ripple current `S`.
@@ -183,6 +184,23 @@ impl RippleModel {
 #[inline]
 pub fn divisor(v: &RippleValue, sin_delta: f32, cos_delta: f32) -> f32 {
     crate::at_least(cos_delta * (1.0 - v.per_amp_q) + sin_delta * v.per_amp_d, MIN_DIVISOR)
+}
+
+/// The back-EMF of the ripple's current parts at the rotor angle of `v`, in V, in the
+/// control frame `θc` that is `δ` ahead of the rotor (`sin δ`, `cos δ`): what the estimated
+/// law feeds forward into the current loop (docs/design.md#the-ripples-back-emf).
+///
+/// The back-EMF per rad/s (mechanical) is the torque per ampere (power balance,
+/// `e·i = τ·ω`), so in the rotor's frame the ripple's part of it is
+/// `K̂m·ω·(−cd(θe), −cq(θe))`; `km_omega_v` is `K̂m·ω` in V. The mean, `K̂m·ω` on the rotor's
+/// q axis, is left to the current loop's integrators, which follow it (it moves with the
+/// load angle only); its harmonics, at 2, 4, 6… times the electrical speed in that frame,
+/// they do not.
+#[inline(always)]
+pub fn ripple_back_emf_v(v: &RippleValue, km_omega_v: f32, sin_delta: f32, cos_delta: f32) -> Dq {
+    let (d, q) = (-v.per_amp_d * km_omega_v, -v.per_amp_q * km_omega_v);
+    // A rotor-frame vector in the frame δ ahead: turned back by δ.
+    Dq { d: d * cos_delta + q * sin_delta, q: q * cos_delta - d * sin_delta }
 }
 
 /// The total ripple of a motor at one operating point ([`total_ripple`]): harmonics in the

@@ -14,9 +14,11 @@
 //! five speeds ±10 %, the peak-to-peak velocity error) with the identified profile as the
 //! controller reaches ≥ 80 % of the dB reduction the true profile gets at orders 4 and 1 with
 //! the patent's law at `θ_cmd`; the estimated mode with it lowers every resonance ≥ 10×, the
-//! order-2 one included (with flux harmonics also a parametric resonance), except where the
-//! estimated law falls short of 10× with the true profile too: there it must get ≥ 80 % of
-//! the true profile's dB.
+//! order-2 one included (with flux harmonics also a parametric resonance). All 50 (release):
+//! ripple worst 0.45 of the tolerance (median 0.09), patent's law worst 88 % of the true
+//! profile's dB, estimated mode worst 17.8× (median 68.7×); before the estimated law fed the
+//! ripple's back-EMF forward (docs/design.md#the-ripples-back-emf) 3 motors stayed below 10×,
+//! worst 7.5×, and so did the true profile there.
 //!
 //! CI runs [`CI_MOTORS`] motors; all 50: `cargo test --release -p stepdamp-identify --test
 //! real_family -- --ignored --nocapture`.
@@ -43,8 +45,6 @@ struct Outcome {
     share: f64,
     /// Worst reduction of the estimated mode (×, orders 4, 2, 1).
     estimated: f64,
-    /// Worst share in dB of the true profile's reduction over the orders below 10× (∞: none).
-    estimated_ratio: f64,
     /// The same three for the patent's route.
     patent_route: (f64, f64, f64),
     line: String,
@@ -58,11 +58,11 @@ fn outcome(seed: u64, p: &stepdamp_identify::plan::Plan, noise: f64) -> Outcome 
     let (report, model, with_flux) = encoder_route(&logs, &p.profile, &io).unwrap();
     assert!(report.flux.is_some());
     let id = model.apply_to(with_flux.as_ref().unwrap(), Some("identified"), "identified").unwrap();
-    let (share, estimated, estimated_ratio, line) = compensation(&m, &id);
+    let (share, estimated, line) = compensation(&m, &id);
     // The patent's route: the four servo runs alone, no flux section.
     let (_, patent_model, _) = encoder_route(&logs[..4], &p.profile, &io).unwrap();
     let patent = patent_model.apply_to(&p.profile, Some("patent-route"), "patent-route").unwrap();
-    let (p_share, p_est, _, _) = compensation(&m, &patent);
+    let (p_share, p_est, _) = compensation(&m, &patent);
     let patent_route =
         (real::worst_ripple_error(&m, &patent, &[OPEN_LOOP_HOLD, OPEN_LOOP_HALF, SERVO_HALF_AMP]).0, p_share, p_est);
     Outcome {
@@ -70,7 +70,6 @@ fn outcome(seed: u64, p: &stepdamp_identify::plan::Plan, noise: f64) -> Outcome 
         ripple: real::worst_ripple_error(&m, &id, &[OPEN_LOOP_HOLD, OPEN_LOOP_HALF, SERVO_HALF_AMP]),
         share,
         estimated,
-        estimated_ratio,
         patent_route,
         line,
     }
@@ -115,14 +114,6 @@ fn family(seeds: std::ops::Range<u64>) {
         results.iter().map(|r| r.share).collect(),
         results.iter().map(|r| r.estimated).collect(),
     );
-    let ratio = results.iter().map(|r| r.estimated_ratio).fold(f64::INFINITY, f64::min);
-    let short = results.iter().filter(|r| r.estimated < 10.0).count();
-    if short > 0 {
-        println!(
-            "estimated mode with the identified profile: below 10x on {short} of {n} motors, there worst {:.0} % of the true profile's dB",
-            100.0 * ratio
-        );
-    }
     summary(
         "the patent's route (servo runs only)",
         results.iter().map(|r| r.patent_route.0).collect(),
@@ -132,15 +123,7 @@ fn family(seeds: std::ops::Range<u64>) {
     for r in &results {
         assert!(r.ripple.0 <= 1.0, "motor {}: {:.2} of the tolerance at {}", r.seed, r.ripple.0, r.ripple.1);
         assert!(r.share >= 0.8, "motor {}: {:.0} % of the true profile's dB reduction", r.seed, 100.0 * r.share);
-        // The estimated law falls short of 10x on a few real motors even with the true profile
-        // (docs/identification.md#the-real-motor-family): there identification must not lose
-        // against the true profile.
-        assert!(
-            r.estimated_ratio >= 0.8,
-            "motor {}: the estimated mode with the identified profile is below 10x and gets {:.0} % of the true profile's dB",
-            r.seed,
-            100.0 * r.estimated_ratio
-        );
+        assert!(r.estimated >= 10.0, "motor {}: the estimated mode only {:.1}x:{}", r.seed, r.estimated, r.line);
     }
 }
 

@@ -8,8 +8,8 @@
 //! ripple` of the identified profile matches the motor's within max(10 %, 1 mN·m) per
 //! harmonic (orders 1–8, complex difference) at open loop `I_hold` and `I_hold/2`, and the
 //! compensation check of `real_family.rs` holds ([`real::compensation`]: the patent's law at
-//! ≥ 80 % of the true profile's dB at orders 4 and 1, the estimated mode ≥ 10× or ≥ 80 % of
-//! the true profile's dB where that is below 10×).
+//! ≥ 80 % of the true profile's dB at orders 4 and 1, the estimated mode ≥ 10× at orders 4, 2
+//! and 1).
 //!
 //! Printed, not asserted: the error at servo `i_q = 0.5 A`, and the error of the same logs
 //! through the flux circle (the route before the shape).
@@ -19,8 +19,10 @@
 //! acceptance is met since the plan's turn runs split the sum between third and fifth
 //! (docs/sensorless.md#the-split-from-a-fast-run): open-loop ripple worst 0.39 of the
 //! tolerance (median 0.10; the circle: 22; the 88:12 split without turn runs: 9.2, 15 of 50),
-//! all 50 within it (the count [`family`] prints); patent's law down to 87 % of the true profile's dB, estimated mode worst
-//! 8.1× where the true profile does no better. It takes minutes, hence `#[ignore]`d.
+//! all 50 within it (the count [`family`] prints); patent's law down to 87 % of the true
+//! profile's dB, estimated mode worst 21.8× (median 64.4×; 8.1× before the estimated law fed
+//! the ripple's back-EMF forward, docs/design.md#the-ripples-back-emf). It takes minutes,
+//! hence `#[ignore]`d.
 //!
 //! CI runs [`CI_MOTORS`] motors; all 50: `cargo test --release -p stepdamp-identify --test
 //! real_sensorless -- --ignored --nocapture`.
@@ -58,8 +60,8 @@ struct Outcome {
     servo: f64,
     /// The flux circle's open-loop error: printed only.
     circle: f64,
-    /// [`compensation`]'s `(share, estimated ×, estimated ratio, line)`; `None` when not run.
-    comp: Option<(f64, f64, f64, String)>,
+    /// [`compensation`]'s `(share, estimated ×, line)`; `None` when not run.
+    comp: Option<(f64, f64, String)>,
     /// Measured minus true `g`, and `|X₃ + X₅|` measured minus true (per unit), with the
     /// sum's phase error in rad.
     shape_error: (f64, f64, f64),
@@ -165,7 +167,7 @@ fn shape_family(seeds: std::ops::Range<u64>) {
 fn family(seeds: std::ops::Range<u64>) {
     let results: Vec<Outcome> = seeds.into_par_iter().map(|s| outcome(s, true)).collect();
     for r in &results {
-        let (share, est, _, line) = r.comp.as_ref().unwrap();
+        let (share, est, line) = r.comp.as_ref().unwrap();
         println!(
             "motor {}: open-loop ripple worst {:.2} of the tolerance ({}); servo iq 0.5 A {:.2}; the circle {:.2}; dB share {share:.2}, estimated {est:.1}x;{line}",
             r.seed, r.open_loop.0, r.open_loop.1, r.servo, r.circle
@@ -209,7 +211,7 @@ fn family(seeds: std::ops::Range<u64>) {
             r.open_loop.1
         );
         assert!(c.0 >= 0.8, "motor {}: {:.0} % of the true profile's dB reduction", r.seed, 100.0 * c.0);
-        assert!(c.2 >= 0.8, "motor {}: estimated mode {:.0} % of the true profile's dB", r.seed, 100.0 * c.2);
+        assert!(c.1 >= 10.0, "motor {}: the estimated mode only {:.1}x:{}", r.seed, c.1, c.2);
     }
 }
 

@@ -281,6 +281,29 @@ proptest! {
     }
 
     #[test]
+    fn the_fed_forward_back_emf_carries_the_ripples_power(
+        te in -4.0f32..4.0, delta in -1.5f32..1.5, i_d in -2.0f32..2.0, i_q in -2.0f32..2.0,
+        omega in -40.0f32..40.0,
+    ) {
+        // Power balance, e·i = τ·ω: the back-EMF fed forward in the frame δ ahead of the
+        // rotor, times the rotor-frame current (i_d, i_q) written in that frame, is the power
+        // of the ripple's current parts at speed ω (torque per ampere −Km·cd, −Km·cq).
+        let cfg = Config::new(&params(Mode::OpenLoop, Compensation::Estimated, RIPPLE)).unwrap();
+        let (s1, c1) = libm::sincosf(te);
+        let (sd, cd) = libm::sincosf(delta);
+        let v = cfg.ripple.eval(s1, c1, 0.0, 0.0);
+        let e = ripple_back_emf_v(&v, KM as f32 * omega, sd, cd);
+        let (id, iq, sd, cd) = (f64::from(i_d), f64::from(i_q), f64::from(sd), f64::from(cd));
+        // The rotor-frame current in the frame δ ahead (turned back by δ).
+        let (ic_d, ic_q) = (id * cd + iq * sd, iq * cd - id * sd);
+        let power = f64::from(e.d) * ic_d + f64::from(e.q) * ic_q;
+        let te = f64::from(te);
+        let ripple_torque = -id * series(&PER_AMP_D, te) - iq * series(&PER_AMP_Q, te);
+        let want = ripple_torque * f64::from(omega);
+        prop_assert!((power - want).abs() < 1e-4 * (1.0 + want.abs()), "{power} W vs {want} W");
+    }
+
+    #[test]
     fn any_current_and_limit_give_finite_harmonics_or_an_error(
         i_d in proptest::num::f32::ANY, i_q in proptest::num::f32::ANY, limit in proptest::num::f32::ANY,
     ) {
