@@ -212,6 +212,8 @@ pub struct SensorlessFit {
     pub turn_left_out: Vec<String>,
     /// How many of the turn runs' measurements were applied to `flux` (0..=[`TURN_PASSES`]).
     pub turn_passes: usize,
+    /// Every log was a turn run: they were fitted as ordinary runs, and nothing was split.
+    pub only_turn_runs: bool,
 }
 
 impl SensorlessFit {
@@ -242,8 +244,9 @@ pub fn identify(
     balance::check(logs, base.motor.pole_pairs)?;
     let (turns, rest): (Vec<SensorlessLog>, Vec<SensorlessLog>) =
         logs.iter().cloned().partition(|l| turn::is_turn_run(l, base));
-    // Only turn runs: nothing else to fit, so they are fitted as ordinary runs.
-    let (turns, logs) = if rest.is_empty() { (Vec::new(), turns) } else { (turns, rest) };
+    // Only turn runs: nothing else to fit, so they are fitted as ordinary runs (and noted).
+    let only_turn_runs = rest.is_empty();
+    let (turns, logs) = if only_turn_runs { (Vec::new(), turns) } else { (turns, rest) };
     let logs = &logs[..];
     let mut flux = base.motor.flux.clone();
     let mut estimated = estimate(logs, &winding_with(base, &flux), o)?;
@@ -283,6 +286,7 @@ pub fn identify(
         turn_logs: turns.iter().map(|l| l.source.clone()).collect(),
         turn_left_out: Vec::new(),
         turn_passes: 0,
+        only_turn_runs,
     };
     if turns.len() >= 2 {
         split_by_turn(&mut f, logs, &turns, base, fit, o)?;

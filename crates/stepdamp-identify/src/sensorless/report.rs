@@ -1,6 +1,7 @@
 //! The sensorless route's report: how the angle was estimated, then the fit's report.
 
 use super::flux::ResistanceSource;
+use super::turn::TURN_MIN_SPEED;
 use super::{AngleReport, SensorlessFit};
 use crate::fit::FitReport;
 use serde::Serialize;
@@ -101,6 +102,11 @@ impl SensorlessReport {
             ));
         }
         notes.extend(f.shape_refused.clone());
+        if f.only_turn_runs {
+            notes.push(format!(
+                "every log is a turn run (electrical speed at least {TURN_MIN_SPEED} × the base's natural frequency): fitted as ordinary runs, though far above the resonance the rotor hardly follows the ripple, so the detent and the ripple are poorly determined and the third/fifth split is not measured; record the plan's quasi-static runs too (docs/sensorless.md#the-split-from-a-fast-run)"
+            ));
+        }
         if let Some(s) = f.shape.as_ref().filter(|s| s.sin2_stands_out()) {
             notes.push(format!(
                 "the flux radius has a sin 2θe term of {:.4} ± {:.4}, which no flux gain makes: check the phase currents' and voltages' gains and timing, R and L (docs/sensorless.md#the-flux-shape-without-a-sensor)",

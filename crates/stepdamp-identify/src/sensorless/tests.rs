@@ -397,6 +397,14 @@ fn the_sensorless_route_measures_the_flux_shape_from_the_radius() {
     assert!(g.turn.is_none(), "{:?}", g.turn);
     let report = super::report::SensorlessReport::new(&base.name, 1.0, 0.3, &base.motor.flux, &g).to_string();
     assert!(report.contains("left out of the split") && report.contains("no turn runs split it"), "{report}");
+    // The turn runs alone: fitted as ordinary runs, and the report says so.
+    let turns: Vec<_> = logs.iter().filter(|l| super::turn::is_turn_run(l, &base)).cloned().collect();
+    let only = identify_sensorless(&turns, &base, &fit_options(&base, &[1, 2, 4]), &FluxOptions::default());
+    let only = only.expect("two turn runs still fit");
+    assert!(only.only_turn_runs && only.turn.is_none() && only.turn_logs.is_empty());
+    let report = super::report::SensorlessReport::new(&base.name, 1.0, 0.3, &base.motor.flux, &only).to_string();
+    assert!(report.contains("every log is a turn run"), "{report}");
+    assert!(!f.only_turn_runs && !g.only_turn_runs);
 }
 
 /// A base whose `L` is 30 % high on a motor whose phase b is 18 % strong (both as written
