@@ -154,32 +154,50 @@ def check_log_columns(root, files):
     return bad
 
 
-# Rows of docs/embedded.md's table and the keys of firmware/qemu-m4/instructions.txt they show.
+# Rows of docs/embedded.md's table and the keys of firmware/qemu-m4/instructions.txt they show
+# (a `_real` key's budget is its mode's, in firmware/qemu-m4/budget.txt).
 INSTRUCTION_ROWS = {
     "open loop, patent law": "open_loop",
     "servo": "servo",
     "open loop, estimated angle": "estimated_angle",
+    "open loop, patent law, with current parts": "open_loop_real",
+    "servo, with current parts": "servo_real",
+    "open loop, estimated angle, with current parts": "estimated_angle_real",
 }
 
 
+def key_values(path):
+    """The `key=value` lines of path (not comments), as a dict of stripped strings."""
+    return {
+        k.strip(): v.strip()
+        for k, v in (line.split("=", 1) for line in path.read_text().splitlines() if "=" in line and not line.startswith("#"))
+    }
+
+
 def check_instruction_counts(root):
-    """docs/embedded.md's instructions per step must be the counts CI's budget check compares
-    against (firmware/qemu-m4/instructions.txt). Returns the mismatches."""
+    """docs/embedded.md's instructions per step (median, budget, largest step) must be what
+    CI's budget check compares against (firmware/qemu-m4/instructions.txt and budget.txt).
+    Returns the mismatches."""
     doc, counts = root / "docs/embedded.md", root / "firmware/qemu-m4/instructions.txt"
-    if not doc.exists() or not counts.exists():
+    budgets = root / "firmware/qemu-m4/budget.txt"
+    if not doc.exists() or not counts.exists() or not budgets.exists():
         return []
-    want = dict(
-        line.split("=", 1) for line in counts.read_text().splitlines() if "=" in line and not line.startswith("#")
-    )
+    want, budget = key_values(counts), key_values(budgets)
+    largest = dict(re.findall(r"^# (\w+): min \d+, max (\d+)$", counts.read_text(), re.M))
     bad, seen = [], set()
     for line in doc.read_text(encoding="utf-8").splitlines():
         cells = [c.strip() for c in line.strip().strip("|").split("|")]
-        if len(cells) >= 2 and cells[0] in INSTRUCTION_ROWS:
+        if len(cells) >= 4 and cells[0] in INSTRUCTION_ROWS:
             key = INSTRUCTION_ROWS[cells[0]]
             seen.add(key)
-            shown = cells[1].replace(",", "")
-            if shown != want.get(key, "").strip():
-                bad.append(f"docs/embedded.md: {cells[0]}: {cells[1]} instructions, {counts.relative_to(root)} says {want.get(key)}")
+            mode = key.removesuffix("_real")
+            for what, shown, source, expected in [
+                ("instructions", cells[1], counts, want.get(key)),
+                ("budget", cells[2].removeprefix("≤").strip(), budgets, budget.get(mode)),
+                ("largest step", cells[3], counts, largest.get(key)),
+            ]:
+                if shown.replace(",", "") != (expected or ""):
+                    bad.append(f"docs/embedded.md: {cells[0]}: {what} {shown}, {source.relative_to(root)} says {expected}")
     for row, key in INSTRUCTION_ROWS.items():
         if key not in seen:
             bad.append(f"docs/embedded.md: no table row '{row}' for {key}")

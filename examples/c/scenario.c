@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "real_motor_params.h"
 #include "stepdamp.h"
 
 /* Periods between printed lines. */
@@ -100,13 +101,24 @@ static float speed_sv(unsigned n) { return n < 1000 ? 8.4f : (n < 2000 ? 0.0f : 
 static sd_config cfg;
 static sd_state st;
 
-/* One phase; adds its sample faults to *faults. */
-static int run(const char *tag, sd_mode mode, sd_compensation comp, speed_fn speed, uint32_t *hash, uint32_t *faults) {
+void scenario_with_current_parts(sd_params *p, int real) {
+    if (!real) return;
+    p->motor.ripple_per_amp_d = real_motor_RIPPLE_PER_AMP_D;
+    p->motor.ripple_per_amp_d_count = sizeof real_motor_RIPPLE_PER_AMP_D / sizeof real_motor_RIPPLE_PER_AMP_D[0];
+    p->motor.ripple_per_amp_q = real_motor_RIPPLE_PER_AMP_Q;
+    p->motor.ripple_per_amp_q_count = sizeof real_motor_RIPPLE_PER_AMP_Q / sizeof real_motor_RIPPLE_PER_AMP_Q[0];
+}
+
+/* One phase of the patent-motor controller, with patent-motor-real's current parts if real
+ * (lines start with prefix, then tag); adds its sample faults to *faults. */
+static int run(const char *prefix, const char *tag, int real, sd_mode mode, sd_compensation comp, speed_fn speed,
+               uint32_t *hash, uint32_t *faults) {
     sd_params p;
     sd_config_info ci;
     sd_state_info si;
-    if (sd_params_patent_motor(mode, comp, &p) != SD_OK || sd_config_init(&p, &cfg) != SD_OK)
-        return fail("sd_config_init", 0);
+    if (sd_params_patent_motor(mode, comp, &p) != SD_OK) return fail("sd_config_init", 0);
+    scenario_with_current_parts(&p, real);
+    if (sd_config_init(&p, &cfg) != SD_OK) return fail("sd_config_init", 0);
     if (sd_state_init(&st) != SD_OK || sd_config_read(&cfg, &ci) != SD_OK || sd_state_read(&st, &si) != SD_OK)
         return fail("sd_state_init", 0);
     plant pl = plant_new(ci.period_s);
@@ -134,7 +146,7 @@ static int run(const char *tag, sd_mode mode, sd_compensation comp, speed_fn spe
             format_e4(b, sizeof b, d[1]);
             format_e4(c, sizeof c, d[2]);
             format_e4(q, sizeof q, iq);
-            printf("%s %4u d=[%s %s %s] iq=%11s faults=%u%s\n", tag, n, a, b, c, q, (unsigned)si.sample_faults,
+            printf("%s%s %4u d=[%s %s %s] iq=%11s faults=%u%s\n", prefix, tag, n, a, b, c, q, (unsigned)si.sample_faults,
                    nan ? " <- NaN i_a sample" : "");
         }
         if (plant_advance(&pl, &cfg, &out, theta, si.speed_command_rad_s) != 0) return fail("plant", n);
@@ -146,20 +158,27 @@ static int run(const char *tag, sd_mode mode, sd_compensation comp, speed_fn spe
     format_e4(r, sizeof r, si.observer_r_hat_ohm);
     format_e4(km, sizeof km, si.observer_km_hat);
     format_e4(delta, sizeof delta, si.observer_delta_rad);
-    printf("%s end i_a=%s i_b=%s faults=%u observer: R=%s Km=%s delta=%s\n", tag, ia, ib, (unsigned)si.sample_faults,
-           r, km, delta);
+    printf("%s%s end i_a=%s i_b=%s faults=%u observer: R=%s Km=%s delta=%s\n", prefix, tag, ia, ib,
+           (unsigned)si.sample_faults, r, km, delta);
     if (mode == SD_MODE_OPEN_LOOP && si.sample_faults != 1) return fail("expected exactly one sample fault", SCENARIO_PERIODS);
     *faults += si.sample_faults;
     return 0;
 }
 
 int scenario_run(void) {
-    uint32_t hash = 0x811c9dc5u, faults = 0;
-    if (run("ol", SD_MODE_OPEN_LOOP, SD_COMPENSATION_PATENT, speed_ol, &hash, &faults)) return 1;
-    /* Open loop with the load-angle observer: standstill first (resistance trim), then run. */
-    if (run("oe", SD_MODE_OPEN_LOOP, SD_COMPENSATION_ESTIMATED, speed_oe, &hash, &faults)) return 1;
-    /* Servo: forward, stop, reverse (the friction feed-forward follows the sign). */
-    if (run("sv", SD_MODE_SERVO, SD_COMPENSATION_PATENT, speed_sv, &hash, &faults)) return 1;
-    printf("checksum fnv1a=0x%08x periods=%u faults=%u\n", (unsigned)hash, 3 * SCENARIO_PERIODS, (unsigned)faults);
+    for (int real = 0; real <= 1; real++) {
+        const char *prefix = real ? "real-" : "";
+        uint32_t hash = 0x811c9dc5u, faults = 0;
+        if (real)
+            printf("with the current parts of patent-motor-real: the same laws, %u periods per phase\n",
+                   SCENARIO_PERIODS);
+        if (run(prefix, "ol", real, SD_MODE_OPEN_LOOP, SD_COMPENSATION_PATENT, speed_ol, &hash, &faults)) return 1;
+        /* Open loop with the load-angle observer: standstill first (resistance trim), then run. */
+        if (run(prefix, "oe", real, SD_MODE_OPEN_LOOP, SD_COMPENSATION_ESTIMATED, speed_oe, &hash, &faults)) return 1;
+        /* Servo: forward, stop, reverse (the friction feed-forward follows the sign). */
+        if (run(prefix, "sv", real, SD_MODE_SERVO, SD_COMPENSATION_PATENT, speed_sv, &hash, &faults)) return 1;
+        printf("%schecksum fnv1a=0x%08x periods=%u faults=%u\n", prefix, (unsigned)hash, 3 * SCENARIO_PERIODS,
+               (unsigned)faults);
+    }
     return 0;
 }

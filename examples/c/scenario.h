@@ -2,9 +2,13 @@
  * The golden scenario of firmware/qemu-m4, in C through the stepdamp C API: the
  * patent-motor controller against a tiny deterministic float plant, three phases of
  * 3000 periods (open loop with an injected NaN current sample; open loop with the
- * load-angle observer; servo forward/stop/reverse). Prints, after a title line chosen
- * by the caller, exactly the lines the Rust firmware prints, including the FNV-1a
- * checksum over the bits of every period's duties and i_q command.
+ * load-angle observer; servo forward/stop/reverse), then the same three phases with the
+ * current parts of patent-motor-real (the ripple per ampere of real_motor_params.h,
+ * which `stepdamp export c-header --motor docs/profiles/patent-motor-real.toml --current
+ * 1.9 --name real_motor --duration 0` writes; the plant keeps its sine back-EMF: these
+ * phases measure the laws' cost). Prints, after a title line chosen by the caller,
+ * exactly the lines the Rust firmware prints, including per motor the FNV-1a checksum
+ * over the bits of every period's duties and i_q command.
  *
  * Shared by the host example (examples/c/demo.c) and the C firmware
  * (firmware/qemu-m4-c), so both run one scenario.
@@ -17,7 +21,12 @@
 /* Periods per phase. */
 #define SCENARIO_PERIODS 3000u
 
-/* Runs the three phases, printing with printf; returns 0, or 1 after printing a
+/* With real nonzero, gives *p (an sd_params_patent_motor) the current parts of
+ * patent-motor-real: its ripple_per_amp_d/_q tables; with 0, leaves it as it is. */
+struct sd_params;
+void scenario_with_current_parts(struct sd_params *p, int real);
+
+/* Runs the six phases, printing with printf; returns 0, or 1 after printing a
  * "FAIL: ..." line when an invariant broke (duty outside [0, 1], non-finite i_q command,
  * not exactly one sample fault in open loop, or an API call that did not return SD_OK). */
 int scenario_run(void);

@@ -4,8 +4,9 @@
  * known instruction count calibrates instructions per tick (40 on mps2-an386: 25 MHz),
  * and an empty timed region gives the reading overhead, which is subtracted.
  * Three phases on the scenario's plant: open loop (patent law), open loop with the
- * load-angle observer (estimated angle), servo. Prints the mean and the largest count
- * per mode. */
+ * load-angle observer (estimated angle), servo; then the same with patent-motor-real's
+ * current parts (scenario_with_current_parts). Prints the mean and the largest count per
+ * mode. */
 #include <stdint.h>
 #include <stdio.h>
 
@@ -28,11 +29,17 @@ static void spin(uint32_t n) {
 static sd_config cfg;
 static sd_state st;
 
-static int measure(const char *name, sd_mode mode, sd_compensation comp, double insn_per_tick, double overhead_ticks) {
+static int measure(const char *name, int real, sd_mode mode, sd_compensation comp, double insn_per_tick,
+                   double overhead_ticks) {
     sd_params p;
     sd_config_info ci;
     sd_state_info si;
-    if (sd_params_patent_motor(mode, comp, &p) != SD_OK || sd_config_init(&p, &cfg) != SD_OK ||
+    if (sd_params_patent_motor(mode, comp, &p) != SD_OK) {
+        printf("FAIL: init %s\n", name);
+        return 1;
+    }
+    scenario_with_current_parts(&p, real);
+    if (sd_config_init(&p, &cfg) != SD_OK ||
         sd_state_init(&st) != SD_OK || sd_config_read(&cfg, &ci) != SD_OK || sd_state_read(&st, &si) != SD_OK) {
         printf("FAIL: init %s\n", name);
         return 1;
@@ -61,7 +68,7 @@ static int measure(const char *name, sd_mode mode, sd_compensation comp, double 
     }
     double mean = ((double)total / SCENARIO_PERIODS - overhead_ticks) * insn_per_tick;
     double max = ((double)most - overhead_ticks) * insn_per_tick;
-    printf("sd_step %-26s mean %5.0f instructions, max %5.0f (+-%.0f per reading), %u periods\n", name, mean, max,
+    printf("sd_step %-45s mean %5.0f instructions, max %5.0f (+-%.0f per reading), %u periods\n", name, mean, max,
            insn_per_tick, SCENARIO_PERIODS);
     return 0;
 }
@@ -87,8 +94,14 @@ int main(void) {
            overhead);
     printf("(instructions executed by the emulator, not cycles on silicon)\n");
     int fail = 0;
-    fail |= measure("open loop, patent", SD_MODE_OPEN_LOOP, SD_COMPENSATION_PATENT, insn_per_tick, overhead);
-    fail |= measure("open loop, estimated angle", SD_MODE_OPEN_LOOP, SD_COMPENSATION_ESTIMATED, insn_per_tick, overhead);
-    fail |= measure("servo, patent", SD_MODE_SERVO, SD_COMPENSATION_PATENT, insn_per_tick, overhead);
+    for (int real = 0; real <= 1; real++) {
+        const char *names[3] = {"open loop, patent", "open loop, estimated angle", "servo, patent"};
+        const char *names_real[3] = {"open loop, patent, current parts", "open loop, estimated angle, current parts",
+                                     "servo, patent, current parts"};
+        const char **n = real ? names_real : names;
+        fail |= measure(n[0], real, SD_MODE_OPEN_LOOP, SD_COMPENSATION_PATENT, insn_per_tick, overhead);
+        fail |= measure(n[1], real, SD_MODE_OPEN_LOOP, SD_COMPENSATION_ESTIMATED, insn_per_tick, overhead);
+        fail |= measure(n[2], real, SD_MODE_SERVO, SD_COMPENSATION_PATENT, insn_per_tick, overhead);
+    }
     return fail;
 }

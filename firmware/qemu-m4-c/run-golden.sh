@@ -26,7 +26,7 @@ if ! diff -u --label rust-firmware --label c-firmware "$out_dir/rust-output.txt"
     echo "qemu-m4-c: FAIL: the C firmware's output differs from the Rust firmware's" >&2
     fail=1
 else
-    echo "qemu-m4-c: ok, C firmware output equals the Rust firmware's ($(wc -l <"$out_dir/c-output.txt") lines, $(grep checksum "$out_dir/c-output.txt"))"
+    echo "qemu-m4-c: ok, C firmware output equals the Rust firmware's ($(wc -l <"$out_dir/c-output.txt") lines, $(grep checksum "$out_dir/c-output.txt" | paste -sd " " -))"
 fi
 if cmp -s "$out_dir/c-output.txt" "$rust_dir/golden.txt"; then
     echo "qemu-m4-c: (and equals firmware/qemu-m4/golden.txt)"

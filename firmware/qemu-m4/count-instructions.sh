@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # Counts the instructions the emulated Cortex-M4F executes per controller step, for the
-# three phases of the golden firmware (open loop, open loop with the estimated angle,
-# servo; 3,000 steps each), records the medians in instructions.txt next to size.txt and
-# fails when one grew by more than 10 % over its record.
+# six phases of the golden firmware (open loop, open loop with the estimated angle, servo;
+# on patent-motor, then with patent-motor-real's current parts: the `_real` modes; 3,000
+# steps each), records the medians in instructions.txt next to size.txt and fails when one
+# grew by more than 10 % over its record, or when any step of a phase executed more than
+# the project's budget for its mode (budget.txt).
 #
 #   bash firmware/qemu-m4/count-instructions.sh           # check against instructions.txt
 #   bash firmware/qemu-m4/count-instructions.sh --bless   # rewrite instructions.txt
@@ -69,28 +71,41 @@ if [[ $status -ne 0 ]]; then
     cat "$work/stdout" >&2
     exit 1
 fi
-grep -q '^checksum ' "$work/stdout" || { echo "count-instructions: the firmware did not finish:" >&2; cat "$work/stdout" >&2; exit 1; }
+tail -n1 "$work/stdout" | grep -q 'checksum ' || { echo "count-instructions: the firmware did not finish:" >&2; cat "$work/stdout" >&2; exit 1; }
 
-# Phases in the order of main(): open loop, estimated angle, servo, `periods` steps each.
-summary="$(python3 - "$work/counts.txt" "$periods" <<'PY'
+# Phases in the order of main() (its LAWS, per motor): open loop, estimated angle, servo,
+# first on patent-motor, then with patent-motor-real's current parts; `periods` steps each.
+modes=(open_loop estimated_angle servo)
+names=("${modes[@]}" "${modes[@]/%/_real}")
+summary="$(python3 - "$work/counts.txt" "$periods" "${names[@]}" <<'PY'
 import statistics
 import sys
 
 counts = [int(x) for x in open(sys.argv[1])]
-n = int(sys.argv[2])
-if len(counts) != 3 * n:
-    sys.exit(f"count-instructions: {len(counts)} steps counted, expected 3 x {n}")
-for i, name in enumerate(["open_loop", "estimated_angle", "servo"]):
+n, names = int(sys.argv[2]), sys.argv[3:]
+if len(counts) != len(names) * n:
+    sys.exit(f"count-instructions: {len(counts)} steps counted, expected {len(names)} x {n}")
+for i, name in enumerate(names):
     c = counts[i * n:(i + 1) * n]
     print(name, int(statistics.median(c)), min(c), max(c))
 PY
 )"
+budgets="$here/budget.txt"
 record="$here/instructions.txt"
-printf '%-16s %7s %7s %7s %9s\n' mode median min max recorded
+printf '%-21s %7s %7s %7s %9s %7s\n' mode median min max recorded budget
 fail=0
 while read -r name median min max; do
     rec="$({ sed -n "s/^$name=\([0-9][0-9]*\)$/\1/p" "$record" 2>/dev/null || true; } | head -n1)"
-    printf '%-16s %7d %7d %7d %9s\n' "$name" "$median" "$min" "$max" "${rec:--}"
+    budget="$(sed -n "s/^${name%_real}=\([0-9][0-9]*\)$/\1/p" "$budgets" | head -n1)"
+    printf '%-21s %7d %7d %7d %9s %7s\n' "$name" "$median" "$min" "$max" "${rec:--}" "${budget:--}"
+    # The budget holds at every step, blessing or not.
+    if [[ -z "$budget" ]]; then
+        echo "count-instructions: FAIL: no ${name%_real}=N line in $budgets" >&2
+        fail=1
+    elif (( max > budget )); then
+        echo "count-instructions: FAIL: $name over budget: $max instructions at its largest step (median $median), budget $budget per step ($budgets)" >&2
+        fail=1
+    fi
     if [[ $bless -eq 0 ]]; then
         if [[ -z "$rec" ]]; then
             echo "count-instructions: FAIL: no $name=N line in $record (--bless records it)" >&2
@@ -109,10 +124,11 @@ if [[ $bless -eq 1 ]]; then
         echo "# firmware/qemu-m4 release build: LTO, opt-level \"s\"): median over $periods steps per mode,"
         echo "# counted by count-instructions.sh from the wrapper's entry to its return. Emulator"
         echo "# instruction counts, not silicon cycles. The period at 20 kHz is 8,400 cycles at 168 MHz."
+        echo "# The _real modes: the same laws given patent-motor-real's current parts (src/main.rs)."
         awk '{ printf "# %s: min %d, max %d\n", $1, $3, $4 }' <<<"$summary"
     } >"$record"
     echo "count-instructions: blessed $record"
-    exit 0
+    exit "$fail"
 fi
-[[ $fail -eq 0 ]] && echo "count-instructions: ok, every mode within +10 % of $record"
+[[ $fail -eq 0 ]] && echo "count-instructions: ok, every mode within +10 % of $record and every step within budget.txt"
 exit "$fail"

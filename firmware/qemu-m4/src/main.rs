@@ -5,10 +5,17 @@
 //! (through [`Topology::winding_voltages_per_vdc`]) minus the back-EMF of a rigid rotor
 //! that follows the command exactly; the encoder count is that rotor's angle quantised.
 //!
+//! Motors: the three laws (open loop with the patent's law at `θ_cmd`, open loop with the
+//! estimated angle, servo) run first on `patent-motor` (detent only), then on the same
+//! controller given the current parts of `patent-motor-real` ([`real_motor`]), whose servo
+//! and estimated laws evaluate the ripple per ampere every step
+//! (docs/design.md#real-motors-flux-harmonics). The plant keeps its sine back-EMF for both:
+//! the second half measures what the laws cost, not how well they cancel a real ripple.
+//!
 //! Output: one line every [`PRINT_EVERY`] periods (leg duties and the i_q command to five
-//! significant digits), the periods around an injected NaN current sample, and a checksum
-//! (FNV-1a over the bits of every period's duties and i_q command). `run-golden.sh` diffs
-//! it against `golden.txt`. Exits QEMU with success, or failure on any broken invariant.
+//! significant digits), the periods around an injected NaN current sample, and per motor a
+//! checksum (FNV-1a over the bits of every period's duties and i_q command). `run-golden.sh`
+//! diffs it against `golden.txt`. Exits QEMU with success, or failure on any broken invariant.
 #![no_std]
 #![no_main]
 
@@ -17,8 +24,16 @@ use core::panic::PanicInfo;
 use cortex_m_rt::{ExceptionFrame, entry, exception};
 use cortex_m_semihosting::{debug, hprintln};
 use stepdamp_core::{
-    Compensation, Config, LegDuties, Measurement, Mode, Output, Params, Position, State, Topology, step,
+    Compensation, Config, CurrentRipple, LegDuties, Measurement, Mode, Output, Params, Position, State, Topology, step,
 };
+
+/// The ripple per ampere of `docs/profiles/patent-motor-real.toml`, `RIPPLE_PER_AMP_D` and
+/// `RIPPLE_PER_AMP_Q` (N·m/A, the detent's convention): read by `build.rs` from
+/// `examples/c/real_motor_params.h`, which `stepdamp export c-header` writes (the command is
+/// in that file; the C firmware includes the same file).
+mod real_motor {
+    include!(concat!(env!("OUT_DIR"), "/real_motor.rs"));
+}
 
 /// Periods between printed lines.
 const PRINT_EVERY: u32 = 250;
@@ -96,9 +111,32 @@ fn fail(what: &str, n: u32) -> ! {
     }
 }
 
-/// Runs one phase of [`PERIODS`] periods; `speed(n)` gives the command in rad/s.
-fn run(tag: &str, mode: Mode, compensation: Compensation, speed: fn(u32) -> f32, hash: &mut Fnv) -> u32 {
-    let cfg = match Config::new(&Params::patent_motor(mode, compensation)) {
+/// A law of the scenario: mode, compensation and the speed command in rad/s at period `n`.
+type Law = (Mode, Compensation, fn(u32) -> f32);
+
+/// The laws every motor runs, tagged, in the order `count-instructions.sh` splits the counts by.
+const LAWS: [(&str, Law); 3] = [
+    ("ol", (Mode::OpenLoop, Compensation::Patent, |_| 8.4)),
+    // Open loop with the load-angle observer: standstill first (resistance trim), then run.
+    ("oe", (Mode::OpenLoop, Compensation::Estimated, |n| if n < 500 { 0.0 } else { 8.4 })),
+    // Servo: forward, stop, reverse (the friction feed-forward follows the sign).
+    (
+        "sv",
+        (Mode::Servo, Compensation::Patent, |n| match n {
+            0..1000 => 8.4,
+            1000..2000 => 0.0,
+            _ => -8.4,
+        }),
+    ),
+];
+
+/// Runs one phase of [`PERIODS`] periods of the `patent-motor` controller given `ripple`;
+/// `speed(n)` gives the command in rad/s; lines start with the two parts of `tag`. Returns
+/// the sample faults.
+fn run(tag: (&str, &str), ripple: CurrentRipple<'static>, (mode, compensation, speed): Law, hash: &mut Fnv) -> u32 {
+    let mut params = Params::patent_motor(mode, compensation);
+    params.motor.current_ripple = ripple;
+    let cfg = match Config::new(&params) {
         Ok(c) => c,
         Err(_) => fail("Config::new", 0),
     };
@@ -126,8 +164,9 @@ fn run(tag: &str, mode: Mode, compensation: Compensation, speed: fn(u32) -> f32,
         }
         if n % PRINT_EVERY == 0 || (mode == Mode::OpenLoop && (NAN_AT..NAN_AT + 2).contains(&n)) {
             hprintln!(
-                "{} {:4} d=[{:.4e} {:.4e} {:.4e}] iq={:11.4e} faults={}{}",
-                tag,
+                "{}{} {:4} d=[{:.4e} {:.4e} {:.4e}] iq={:11.4e} faults={}{}",
+                tag.0,
+                tag.1,
                 n,
                 d[0],
                 d[1],
@@ -141,8 +180,9 @@ fn run(tag: &str, mode: Mode, compensation: Compensation, speed: fn(u32) -> f32,
         theta = st.position_command();
     }
     hprintln!(
-        "{} end i_a={:.4e} i_b={:.4e} faults={} observer: R={:.4e} Km={:.4e} delta={:.4e}",
-        tag,
+        "{}{} end i_a={:.4e} i_b={:.4e} faults={} observer: R={:.4e} Km={:.4e} delta={:.4e}",
+        tag.0,
+        tag.1,
         plant.i_a,
         plant.i_b,
         st.sample_faults,
@@ -159,23 +199,18 @@ fn run(tag: &str, mode: Mode, compensation: Compensation, speed: fn(u32) -> f32,
 #[entry]
 fn main() -> ! {
     hprintln!("stepdamp-core on Cortex-M4F: patent-motor, three legs, {} periods per phase", PERIODS);
-    let mut hash = Fnv(0x811c_9dc5);
-    let mut faults = run("ol", Mode::OpenLoop, Compensation::Patent, |_| 8.4, &mut hash);
-    // Open loop with the load-angle observer: standstill first (resistance trim), then run.
-    faults += run("oe", Mode::OpenLoop, Compensation::Estimated, |n| if n < 500 { 0.0 } else { 8.4 }, &mut hash);
-    // Servo: forward, stop, reverse (the friction feed-forward follows the sign).
-    faults += run(
-        "sv",
-        Mode::Servo,
-        Compensation::Patent,
-        |n| match n {
-            0..1000 => 8.4,
-            1000..2000 => 0.0,
-            _ => -8.4,
-        },
-        &mut hash,
-    );
-    hprintln!("checksum fnv1a=0x{:08x} periods={} faults={}", hash.0, 3 * PERIODS, faults);
+    let real = CurrentRipple { per_amp_d: &real_motor::RIPPLE_PER_AMP_D, per_amp_q: &real_motor::RIPPLE_PER_AMP_Q };
+    for (title, prefix, ripple) in [(None, "", CurrentRipple::NONE), (Some("patent-motor-real"), "real-", real)] {
+        if let Some(t) = title {
+            hprintln!("with the current parts of {}: the same laws, {} periods per phase", t, PERIODS);
+        }
+        let mut hash = Fnv(0x811c_9dc5);
+        let mut faults = 0;
+        for (tag, law) in LAWS {
+            faults += run((prefix, tag), ripple, law, &mut hash);
+        }
+        hprintln!("{}checksum fnv1a=0x{:08x} periods={} faults={}", prefix, hash.0, 3 * PERIODS, faults);
+    }
     debug::exit(debug::EXIT_SUCCESS);
     loop {
         cortex_m::asm::bkpt();
