@@ -33,15 +33,41 @@
 //! * the same with the motor's own `J` in the base (as the stress family's base): every
 //!   motor passes (worst 0.82 of the tolerance, motor 11 at order 2 where `g` comes out 0;
 //!   0.83 before the margin), which isolates the fit of `J`.
+//!
+//! And, `#[ignore]`d (release, under a minute: `cargo test --release -p stepdamp-identify
+//! --test real_independent -- --ignored --nocapture`), the acceptance with the compensation
+//! check of `real_family.rs` ([`real::compensation`]) on the identified profile: this
+//! repository's simulator with the generator's whole true motor as the plant
+//! ([`servo_plant`]: its detent, flux, `J`, `Fs` and friction law) and the identified
+//! profile as the controller; the patent's law ≥ 80 % of the true profile's dB at orders 4
+//! and 1, the estimated mode ≥ 10× at orders 4, 2 and 1. It fails on 3 of the 16: patent's
+//! law worst 69 % (median 94 %), estimated mode worst 3.1× (median 45.3×; 16.5× without
+//! motor 0).
+//!
+//! * Motor 0, order 2: the estimated mode 3.1×, where the true profile gets 2.0×: the
+//!   estimated law's own limit on this motor, not identification's. It comes from the third
+//!   (1.3 %) and fifth (1.0 %) flux harmonics together: the true profile gets 135× without
+//!   the fifth, 29× without the third, 112× without both; Karnopp friction instead of the
+//!   smooth law changes nothing.
+//! * Motors 13 and 14, order 4: the patent's law 69 % (23.1 dB of the true profile's
+//!   33.5 dB) and 79.7 % (16.7 of 20.9 dB). Their order-4 ripple at `I_hold` nearly cancels
+//!   (1.76 mN·m of a 6.4 mN·m detent; 2.05 of 16.9), so the identified detent's and flux's
+//!   small errors (motor 13: `A₄` −1.6 % and +0.027 rad; ripple error 0.28 and 0.15 of the
+//!   tolerance, within its 1 mN·m floor) are a large part of what is left to cancel. In the
+//!   true profile, the identified detent alone costs 8.6 and 1.8 dB, the identified flux
+//!   section alone 5.0 and 2.9 dB, the identified `J`, `Fs` and friction law nothing.
 
 mod independent;
+#[allow(dead_code)] // the compensation check and the user's base only
+mod real;
 
 use independent::servo_real::{RealMotor, ServoDrive, parse_servo_plan, run};
-use independent::truth::{POINTS, ripple_error, truth_profile};
+use independent::truth::{POINTS, ripple_error, servo_plant, truth_profile};
 use independent::{Motor, RealDraw, real_draw, stress_friction};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
+use real::{assert_compensation, compensation, compensation_summary, median, user_base};
 use std::f64::consts::PI;
 use stepdamp_identify::from_logs::{IdentifyOptions, encoder_route};
 use stepdamp_identify::log::{LogOptions, RunLog, parse_log};
@@ -129,14 +155,27 @@ enum BaseInertia {
     True,
 }
 
+/// What one motor gives.
+struct Outcome {
+    seed: u64,
+    /// Worst ripple error (fraction of the tolerance).
+    ripple: f64,
+    /// Where it is, and the identified terms against the truth.
+    about: String,
+    /// [`compensation`]'s `(share, estimated ×, line)` with the generator's true motor as
+    /// the plant ([`servo_plant`]); `None` when not run.
+    comp: Option<(f64, f64, String)>,
+}
+
 /// Identifies motors `seeds` from a base with inertia `j` and asserts the tolerance on each;
-/// prints each motor.
-fn family(seeds: std::ops::Range<u64>, j: BaseInertia) {
-    let base = Profile::preset("patent-motor").unwrap().edited("patent-motor", |d| d.motor.detent.clear()).unwrap();
+/// with `sweeps`, also the compensation check (module documentation). Prints each motor and
+/// the family's worst (and median of the compensation).
+fn family(seeds: std::ops::Range<u64>, j: BaseInertia, sweeps: bool) {
+    let base = user_base();
     let o = PlanOptions { electrical_periods: 15.0, min_steady_s: 1.0, ..PlanOptions::default() };
     let p = plan(&base, &o).unwrap();
     let rows = parse_servo_plan(&runs_csv(&p.runs).unwrap()).unwrap();
-    let results: Vec<(u64, f64, String)> = seeds
+    let results: Vec<Outcome> = seeds
         .into_par_iter()
         .map(|seed| {
             let (m, d) = real_motor(seed, &base);
@@ -155,19 +194,30 @@ fn family(seeds: std::ops::Range<u64>, j: BaseInertia) {
             let (report, model, with_flux) = encoder_route(&logs, &user, &IdentifyOptions::new(&[1, 2, 4])).unwrap();
             assert!(report.flux.is_some(), "motor {seed}: no flux section identified");
             let id = model.apply_to(with_flux.as_ref().unwrap(), Some("identified"), "identified").unwrap();
-            let (err, at) = worst_ripple_error(&m, &id, base.drive.holding_current_a);
+            let (ripple, at) = worst_ripple_error(&m, &id, base.drive.holding_current_a);
             let f = &report.fit;
             let inertia = f.decisions.iter().map(|d| d.to_string()).find(|d| d.starts_with("J ")).unwrap_or_default();
-            (seed, err, format!("{at}; {}; {inertia}", compare(&m, &id)))
+            let comp = sweeps.then(|| compensation(&servo_plant(&base, &m), &id));
+            Outcome { seed, ripple, about: format!("{at}; {}; {inertia}", compare(&m, &id)), comp }
         })
         .collect();
-    for (seed, err, at) in &results {
-        println!("motor {seed}: worst {err:.2} of the tolerance ({at})");
+    for r in &results {
+        let comp =
+            r.comp.as_ref().map_or(String::new(), |(s, e, l)| format!("; dB share {s:.3}, estimated {e:.1}x;{l}"));
+        println!("motor {}: worst {:.2} of the tolerance ({}){comp}", r.seed, r.ripple, r.about);
     }
-    let worst = results.iter().map(|r| r.1).fold(0.0, f64::max);
+    let worst = results.iter().map(|r| r.ripple).fold(0.0, f64::max);
     println!("{} motors ({j:?} J in the base): worst {worst:.2} of the tolerance max(10 %, 1 mN·m)", results.len());
-    for (seed, err, at) in &results {
-        assert!(*err <= 1.0, "motor {seed}: {err:.2} of the tolerance at {at}");
+    let comp: Vec<(f64, f64)> = results.iter().filter_map(|r| r.comp.as_ref().map(|c| (c.0, c.1))).collect();
+    if !comp.is_empty() {
+        let ripple = median(results.iter().map(|r| r.ripple).collect());
+        println!("ripple error median {ripple:.2} of the tolerance; {}", compensation_summary(&comp));
+    }
+    for r in &results {
+        assert!(r.ripple <= 1.0, "motor {}: {:.2} of the tolerance at {}", r.seed, r.ripple, r.about);
+        if let Some((share, est, line)) = &r.comp {
+            assert_compensation(r.seed, *share, *est, line);
+        }
     }
 }
 
@@ -198,10 +248,17 @@ fn the_generators_torque_and_back_emf_come_from_its_flux_linkage_and_balance_ene
 
 #[test]
 fn independent_real_motors_ripple_is_identified_at_every_operating_point_with_the_true_inertia() {
-    family(0..ALL_MOTORS, BaseInertia::True);
+    family(0..ALL_MOTORS, BaseInertia::True, false);
 }
 
 #[test]
 fn independent_real_motors_ripple_is_identified_at_every_operating_point_with_an_unknown_inertia() {
-    family(0..ALL_MOTORS, BaseInertia::Preset);
+    family(0..ALL_MOTORS, BaseInertia::Preset, false);
+}
+
+/// The acceptance with the compensation check (module documentation; release, minutes).
+#[test]
+#[ignore = "16 motors with compensation sweeps, release: minutes (module documentation)"]
+fn independent_real_motors_identified_profile_compensates_as_the_true_one_with_an_unknown_inertia() {
+    family(0..ALL_MOTORS, BaseInertia::Preset, true);
 }

@@ -1,11 +1,15 @@
 //! What the tests compare the identified profiles with: the independent generators' true
-//! motor as a profile, and the per-harmonic ripple comparison.
+//! motor as a profile (its ripple, or the whole motor as the plant of this repository's
+//! simulator), and the per-harmonic ripple comparison.
 //!
 //! Not part of the generators: this is where their output meets `stepdamp-profile` (its
 //! `ripple` of the true profile is checked against the generator's own DFT, two codes for
 //! one physics).
 
 use super::flux::FluxShape;
+use super::servo_real::RealMotor;
+use super::{Friction, open_loop};
+use stepdamp_profile::data::{FrictionLawName, FrictionSection};
 use stepdamp_profile::flux::{FluxHarmonic, FluxSection};
 use stepdamp_profile::ripple::{Ripple, ripple};
 use stepdamp_profile::{DetentTerm, Profile};
@@ -32,6 +36,62 @@ pub fn truth_profile(base: &Profile, detent: &[(u16, f64, f64)], flux: &FluxShap
         };
     })
     .unwrap()
+}
+
+/// The servo generator's whole true motor `m` as a profile, for the plant of this
+/// repository's simulator: `base` (its drive) holding `m`'s detent and flux
+/// ([`truth_profile`]), winding, `Km`, `J`, `D`, `Fs` and friction law (smooth creep, or
+/// Stribeck with the same creep speed: the same formulas as `stepdamp-sim`'s laws).
+pub fn servo_plant(base: &Profile, m: &RealMotor) -> Profile {
+    let mech = &m.mech;
+    let friction = match mech.friction {
+        Friction::SmoothCreep => FrictionSection {
+            law: FrictionLawName::Smooth,
+            creep_speed_rad_s: Some(mech.creep_rad_s),
+            ..FrictionSection::default()
+        },
+        Friction::Stribeck { fs_static_nm, stribeck_rad_s } => FrictionSection {
+            law: FrictionLawName::Stribeck,
+            creep_speed_rad_s: Some(mech.creep_rad_s),
+            static_nm: Some(fs_static_nm),
+            stribeck_speed_rad_s: Some(stribeck_rad_s),
+        },
+    };
+    let (winding, rotor) = ((m.r, m.l, mech.km), (mech.j, mech.d, mech.fs));
+    with_mechanics(&truth_profile(base, &mech.detent, &m.flux), winding, rotor, friction)
+}
+
+/// The open-loop generator's whole true motor `m` as a profile, for the plant of this
+/// repository's simulator: `base` (its drive) holding `m`'s detent and flux
+/// ([`truth_profile`]), winding, `Km`, `J`, `D`, `Fs` and friction law (Karnopp, or smooth
+/// with its creep speed).
+pub fn open_loop_plant(base: &Profile, m: &open_loop::Motor) -> Profile {
+    let friction = match m.friction {
+        open_loop::Friction::Karnopp => FrictionSection::default(),
+        open_loop::Friction::Smooth { creep_rad_s } => FrictionSection {
+            law: FrictionLawName::Smooth,
+            creep_speed_rad_s: Some(creep_rad_s),
+            ..FrictionSection::default()
+        },
+    };
+    with_mechanics(&truth_profile(base, &m.detent, &m.flux), (m.r, m.l, m.km), (m.j, m.d, m.fs), friction)
+}
+
+/// `truth` with winding `(R Ω, L H, Km N·m/A)`, rotor `(J kg·m², D N·m·s/rad, Fs N·m)` and
+/// `friction`.
+fn with_mechanics(
+    truth: &Profile,
+    winding: (f64, f64, f64),
+    rotor: (f64, f64, f64),
+    friction: FrictionSection,
+) -> Profile {
+    truth
+        .edited("truth", |d| {
+            (d.motor.resistance_ohm, d.motor.inductance_h, d.motor.km_nm_per_a) = winding;
+            (d.motor.inertia_kg_m2, d.motor.viscous_nm_s_per_rad, d.motor.coulomb_friction_nm) = rotor;
+            d.motor.friction = friction;
+        })
+        .unwrap()
 }
 
 /// `A·e^{jφ}` as `(re, im)`.

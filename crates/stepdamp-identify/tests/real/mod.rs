@@ -103,6 +103,13 @@ pub fn peaks(motor: &Profile, controller: &Profile, k: u16, comps: &[Compensatio
         .collect()
 }
 
+/// The compensation acceptance's bound on the patent's law: at least this share of the true
+/// profile's dB reduction at orders 4 and 1 (docs/identification.md#the-real-motor-family).
+pub const MIN_DB_SHARE: f64 = 0.8;
+/// The compensation acceptance's bound on the estimated mode: at least this reduction (×) of
+/// the peak-to-peak velocity error at orders 4, 2 and 1.
+pub const MIN_ESTIMATED: f64 = 10.0;
+
 /// The compensation check of the module documentation: the identified profile's share of the
 /// true profile's dB reduction at orders 4 and 1 (patent's law), and the estimated mode's
 /// worst reduction (×, orders 4, 2, 1) with the identified profile. Returns
@@ -125,4 +132,31 @@ pub fn compensation(truth: &Profile, id: &Profile) -> (f64, f64, String) {
         }
     }
     (share, est, line)
+}
+
+/// Asserts the compensation acceptance ([`MIN_DB_SHARE`], [`MIN_ESTIMATED`]) on motor `seed`'s
+/// [`compensation`] result: `share`, `estimated` (×) and its `line`.
+pub fn assert_compensation(seed: u64, share: f64, estimated: f64, line: &str) {
+    assert!(share >= MIN_DB_SHARE, "motor {seed}: {:.0} % of the true profile's dB reduction:{line}", 100.0 * share);
+    assert!(estimated >= MIN_ESTIMATED, "motor {seed}: the estimated mode only {estimated:.1}x:{line}");
+}
+
+/// The median of `v` (the upper one of an even count).
+pub fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// The family's summary of [`compensation`] results `(share, estimated ×)`: the worst and the
+/// median of each.
+pub fn compensation_summary(results: &[(f64, f64)]) -> String {
+    let (share, est): (Vec<f64>, Vec<f64>) = results.iter().copied().unzip();
+    let least = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
+    format!(
+        "patent's law: worst {:.0} % (median {:.0} %) of the true profile's dB at orders 4 and 1; estimated mode: worst {:.1}x (median {:.1}x)",
+        100.0 * least(&share),
+        100.0 * median(share.clone()),
+        least(&est),
+        median(est.clone())
+    )
 }
