@@ -59,7 +59,7 @@ pub struct State {
     /// The back-EMF of the ripple's current parts fed forward into this period's current
     /// loop, V, control frame ([`crate::ripple::ripple_back_emf_v`]); zero unless the
     /// estimated law runs with a model that has current parts.
-    pub ripple_emf_v: Dq,
+    ripple_emf_v: Dq,
     /// Periods whose current sample was rejected (non-finite or beyond 100× the current
     /// limit), in total (saturating); the previous good sample was used instead, or, from
     /// [`CURRENT_SENSOR_FAULT_PERIODS`] in a row on, zero volts.
