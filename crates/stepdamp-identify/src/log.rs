@@ -10,7 +10,8 @@
 //! | `i_q_a` | A | **yes**, or both `i_a_a` and `i_b_a` |
 //! | `i_a_a`, `i_b_a` | A | instead of `i_q_a`: then `i_q = −i_a sin θe + i_b cos θe` at `θe = Nr·θ_fb` |
 //! | `iq_cmd_a` | A | optional: the loop's q-current command (an alternative measure of loop effort) |
-//! | `theta_cmd_rad`, `omega_fb_rad_s`, `i_d_a` | | read when present, not needed |
+//! | `i_d_a` | A | optional: the measured flux current `i_d` in the encoder's frame; without it `i_d` comes from `i_a_a`, `i_b_a` when they are logged (`i_d = i_a cos θe + i_b sin θe`), else it is taken as the plan's servo command, 0 |
+//! | `theta_cmd_rad`, `omega_fb_rad_s` | | read when present, not needed |
 //!
 //! Columns may come in any order. Unknown columns are ignored and listed in
 //! [`RunLog::ignored_columns`] so the caller can say so.
@@ -88,6 +89,12 @@ pub struct RunLog {
     pub i_q_a: Vec<f64>,
     /// The loop's q-current command in A, when logged.
     pub iq_cmd_a: Option<Vec<f64>>,
+    /// Measured flux current `i_d` in A (encoder frame): the `i_d_a` column, or the Park
+    /// transform of the phase currents when they are logged; `None` when neither is (then
+    /// `i_d = 0`, the servo runs' command, is assumed). With a `[motor.flux]` section a
+    /// non-zero `i_d` makes torque (docs/design.md#real-motors-flux-harmonics), which the
+    /// encoder fit counts.
+    pub i_d_a: Option<Vec<f64>>,
     /// Where `i_q` came from.
     pub iq_source: IqSource,
     /// Header columns that were not used (unknown names), in file order.
@@ -405,15 +412,23 @@ pub(crate) fn log_from_columns<R: Read>(
         return Err(cols.missing("i_q_a", "torque current in A; or give both i_a_a and i_b_a"));
     };
     let want_cmd = cols.has("iq_cmd_a");
+    let want_id = cols.has("i_d_a");
     let want_phases = PHASE_COLUMNS.iter().all(|c| cols.has(c));
+    // i_q logged, no i_d, phase currents without the voltages: the currents still give i_d.
+    let id_from_currents =
+        iq_source == IqSource::Column && !want_id && !want_phases && cols.has("i_a_a") && cols.has("i_b_a");
     let mut wanted = vec!["t_s", "theta_fb_rad"];
     match iq_source {
+        IqSource::Column if id_from_currents => wanted.extend(["i_q_a", "i_a_a", "i_b_a"]),
         IqSource::Column => wanted.push("i_q_a"),
         IqSource::Park if want_phases => {}
         IqSource::Park => wanted.extend(["i_a_a", "i_b_a"]),
     }
     if want_cmd {
         wanted.push("iq_cmd_a");
+    }
+    if want_id {
+        wanted.push("i_d_a");
     }
     if want_phases {
         wanted.extend(PHASE_COLUMNS);
@@ -430,27 +445,40 @@ pub(crate) fn log_from_columns<R: Read>(
     let mut values = values.into_iter();
     let mut next = || values.next().unwrap_or_default();
     let (t, th) = (next(), next());
-    let iq = match iq_source {
-        IqSource::Column => Some(next()),
-        IqSource::Park if want_phases => None,
+    let (iq, id_park) = match iq_source {
+        IqSource::Column if id_from_currents => {
+            let (iq, ia, ib) = (next(), next(), next());
+            (Some(iq), Some(park_all(opts.pole_pairs, &th, &ia, &ib, park_d)))
+        }
+        IqSource::Column => (Some(next()), None),
+        IqSource::Park if want_phases => (None, None),
         IqSource::Park => {
             let (ia, ib) = (next(), next());
-            Some(park_q_all(opts.pole_pairs, &th, &ia, &ib))
+            (
+                Some(park_all(opts.pole_pairs, &th, &ia, &ib, park_q)),
+                Some(park_all(opts.pole_pairs, &th, &ia, &ib, park_d)),
+            )
         }
     };
     let cmd = want_cmd.then(&mut next);
+    let id_column = want_id.then(&mut next);
     let phases = want_phases.then(|| PhaseSignals { i_a_a: next(), i_b_a: next(), v_a_v: next(), v_b_v: next() });
     let iq = match (iq, &phases) {
         (Some(iq), _) => iq,
-        (None, Some(p)) => park_q_all(opts.pole_pairs, &th, &p.i_a_a, &p.i_b_a),
+        (None, Some(p)) => park_all(opts.pole_pairs, &th, &p.i_a_a, &p.i_b_a, park_q),
         (None, None) => Vec::new(),
     };
+    // The logged i_d first; else the phase currents' (before a slow run's are dropped).
+    let id = id_column
+        .or(id_park)
+        .or_else(|| phases.as_ref().map(|p| park_all(opts.pole_pairs, &th, &p.i_a_a, &p.i_b_a, park_d)));
     let mut log = RunLog {
         source: path,
         t_s: t,
         theta_fb_rad: th,
         i_q_a: iq,
         iq_cmd_a: cmd,
+        i_d_a: id,
         iq_source,
         ignored_columns: ignored,
         phases,
@@ -462,10 +490,17 @@ pub(crate) fn log_from_columns<R: Read>(
     Ok(log)
 }
 
-/// `i_q` of every sample: [`park_q`] at `Nr·θ_fb`.
-fn park_q_all(pole_pairs: u16, th: &[f64], ia: &[f64], ib: &[f64]) -> Vec<f64> {
+/// `i_q` or `i_d` of every sample ([`park_q`] or [`park_d`]) at `Nr·θ_fb`.
+fn park_all(pole_pairs: u16, th: &[f64], ia: &[f64], ib: &[f64], park: fn(f64, f64, f64) -> f64) -> Vec<f64> {
     let nr = f64::from(pole_pairs);
-    th.iter().zip(ia.iter().zip(ib)).map(|(&th, (&a, &b))| park_q(nr * th, a, b)).collect()
+    th.iter().zip(ia.iter().zip(ib)).map(|(&th, (&a, &b))| park(nr * th, a, b)).collect()
+}
+
+/// `i_d = i_a cos θe + i_b sin θe`.
+#[inline]
+fn park_d(theta_e: f64, i_a: f64, i_b: f64) -> f64 {
+    let (s, c) = theta_e.sin_cos();
+    i_a * c + i_b * s
 }
 
 /// `i_q = −i_a sin θe + i_b cos θe`.
@@ -487,6 +522,7 @@ impl RunLog {
             theta_fb_rad: rows.iter().map(|r| r.theta_fb_rad).collect(),
             i_q_a: rows.iter().map(|r| r.i_q_a).collect(),
             iq_cmd_a: Some(rows.iter().map(|r| r.iq_cmd_a).collect()),
+            i_d_a: Some(col(|r| r.i_d_a)),
             iq_source: IqSource::Column,
             ignored_columns: Vec::new(),
             phases: Some(PhaseSignals {

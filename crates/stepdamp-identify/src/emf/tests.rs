@@ -94,6 +94,7 @@ fn a_back_emf_run_sampled_too_slowly_is_refused_naming_its_rate_not_a_panic() {
         theta_fb_rad: t.iter().map(|t| 10.0 * t).collect(),
         i_q_a: vec![0.0; n],
         iq_cmd_a: None,
+        i_d_a: None,
         iq_source: crate::log::IqSource::Column,
         ignored_columns: Vec::new(),
         phases: Some(PhaseSignals {

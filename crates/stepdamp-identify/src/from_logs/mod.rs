@@ -352,30 +352,42 @@ fn flux_from_back_emf(
 }
 
 /// Encoder logs of a motor whose base has a `[motor.flux]` section, with each `i_q` (and
-/// `iq_cmd`) replaced by the torque per `Km` the flux shape gives at the encoder angle with
-/// `i_d = 0` (the servo runs of the plan hold it there: docs/files.md#plan-csv), so that the
-/// fit's effort `Km·i_q` is the motor's torque and the ripple that grows with `i_q` is not
-/// fitted as detent (docs/design.md#real-motors-flux-harmonics). `None` without the section.
+/// `iq_cmd`) replaced by the torque per `Km` the flux shape gives, so that the fit's effort
+/// `Km·i_q` is the motor's torque and the ripple that grows with the current is not fitted
+/// as detent (docs/design.md#real-motors-flux-harmonics). The phase currents are put back
+/// from `i_q` and the log's measured `i_d` ([`crate::log::RunLog::i_d_a`]; 0, the servo runs'
+/// command (docs/files.md#plan-csv), when the log has none) at the encoder angle they were
+/// measured at; the shape is taken at the rotor's edge-timed angle
+/// ([`crate::stick::edge_timed_angle`]), not the count's centre: inside a count the current
+/// is up to half a count off the rotor's q axis, which biased the 4th harmonic by 1.6 % on
+/// a drive that reacts to every count (docs/identification.md#a-motor-with-flux-harmonics).
+/// `None` without the section.
 fn with_flux_torque(logs: &[crate::log::RunLog], base: &Profile) -> Option<Vec<crate::log::RunLog>> {
     if base.motor.flux.is_default() {
         return None;
     }
     let shape = stepdamp_profile::flux::FluxShape::new(&base.motor.flux);
     let nr = f64::from(base.motor.pole_pairs);
-    let torque = |th: &[f64], iq: &[f64]| -> Vec<f64> {
-        th.iter()
+    let torque = |l: &crate::log::RunLog, iq: &[f64]| -> Vec<f64> {
+        // A log's vectors are as long as each other (RunLog); `None` is i_d = 0.
+        let id = l.i_d_a.iter().flatten().copied().chain(std::iter::repeat(0.0));
+        let rotor = crate::stick::edge_timed_angle(&l.t_s, &l.theta_fb_rad).theta_rad;
+        l.theta_fb_rad
+            .iter()
+            .zip(&rotor)
             .zip(iq)
-            .map(|(&t, &i)| {
+            .zip(id)
+            .map(|(((&t, &r), &q), d)| {
                 let (s, c) = (nr * t).sin_cos();
-                shape.torque_nm(1.0, nr * t, -i * s, i * c)
+                shape.torque_nm(1.0, nr * r, d * c - q * s, d * s + q * c)
             })
             .collect()
     };
     Some(
         logs.iter()
             .map(|l| crate::log::RunLog {
-                i_q_a: torque(&l.theta_fb_rad, &l.i_q_a),
-                iq_cmd_a: l.iq_cmd_a.as_ref().map(|c| torque(&l.theta_fb_rad, c)),
+                i_q_a: torque(l, &l.i_q_a),
+                iq_cmd_a: l.iq_cmd_a.as_ref().map(|c| torque(l, c)),
                 ..l.clone()
             })
             .collect(),

@@ -148,3 +148,30 @@ fn a_huge_angle_is_refused_instead_of_turning_the_torque_current_into_nan() {
     let e = parse(text).unwrap_err().to_string();
     assert!(e.contains("run.csv: line 3, column 'theta_fb_rad'") && e.contains("1e9"), "{e}");
 }
+
+#[test]
+fn the_d_current_is_read_from_its_column_else_parked_from_the_phase_currents() {
+    // A current vector of 0.3 A along d and 0.2 A along q at θe = 50·θ.
+    let rows = |with: &dyn Fn(f64, f64, f64) -> String| -> String {
+        (0..6000)
+            .map(|i| {
+                let (t, th) = (i as f64 * 5e-5, i as f64 * 5e-5);
+                let (s, c) = (50.0 * th).sin_cos();
+                with(t, th, 0.3 * c - 0.2 * s) + &format!(",{}\n", 0.3 * s + 0.2 * c)
+            })
+            .collect()
+    };
+    let phases = format!("t_s,theta_fb_rad,i_a_a,i_b_a\n{}", rows(&|t, th, ia| format!("{t},{th},{ia}")));
+    let log = parse(&phases).unwrap();
+    let (id, iq) = (log.i_d_a.as_ref().unwrap(), &log.i_q_a);
+    assert!(id.iter().all(|d| (d - 0.3).abs() < 1e-12) && iq.iter().all(|q| (q - 0.2).abs() < 1e-12));
+    // With i_q_a given too: i_d from the phase currents still.
+    let both = format!("t_s,theta_fb_rad,i_q_a,i_a_a,i_b_a\n{}", rows(&|t, th, ia| format!("{t},{th},0.2,{ia}")));
+    assert!(parse(&both).unwrap().i_d_a.unwrap().iter().all(|d| (d - 0.3).abs() < 1e-12));
+    // The column wins over the phases.
+    let column =
+        format!("t_s,theta_fb_rad,i_q_a,i_d_a,i_a_a,i_b_a\n{}", rows(&|t, th, ia| format!("{t},{th},0.2,0.25,{ia}")));
+    assert!(parse(&column).unwrap().i_d_a.unwrap().iter().all(|&d| d == 0.25));
+    // Neither: None (i_d = 0 is assumed by the fit).
+    assert!(parse(&format!("{HEAD}{}", body(6000))).unwrap().i_d_a.is_none());
+}

@@ -161,6 +161,8 @@ pub fn estimate(logs: &[SensorlessLog], w: &Winding, o: &FluxOptions) -> Result<
             theta_fb_rad: a.theta_e_rad.iter().map(|th| th / nr).collect(),
             i_q_a,
             iq_cmd_a: None,
+            // `i_q_a` is already the whole torque per Km, the d current's part included.
+            i_d_a: None,
             iq_source: IqSource::Park,
             ignored_columns: log.ignored_columns.clone(),
             phases: None,

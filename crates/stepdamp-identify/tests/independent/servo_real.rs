@@ -21,8 +21,8 @@
 //! * **Drive**, at the PWM rate, on the encoder (centre of the count): the position PID and
 //!   speed filter of [`super`] (all three poles at `−2π·f_b` for the inertia it was tuned
 //!   for; `f_b` the plan row's `servo_bandwidth_hz`) gives `i_q*`; a PI current loop in the
-//!   encoder's frame (`i_d* = 0`), tuned by pole-zero cancellation on its nominal `R`, `L`
-//!   (`Kp = L·ω_c`, `Ki = R·ω_c`), turns the sampled `i_d`, `i_q` errors into `v_d`, `v_q`,
+//!   encoder's frame (`i_d*` the row's `d_current_a`), tuned by pole-zero cancellation on its
+//!   nominal `R`, `L` (`Kp = L·ω_c`, `Ki = R·ω_c`), turns the sampled `i_d`, `i_q` errors into `v_d`, `v_q`,
 //!   rotated into the phases at the encoder angle advanced by 1.5 periods of the estimated
 //!   electrical speed, limited to `±V_bus` per winding (integration stops while limited),
 //!   applied over the next period (one period of computation delay) as its mean voltage.
@@ -102,6 +102,8 @@ pub struct ServoRow {
     pub row: PlanRow,
     /// `servo_bandwidth_hz`.
     pub bandwidth_hz: f64,
+    /// `d_current_a`: the d current the current loop holds, A.
+    pub d_current_a: f64,
 }
 
 /// Parses the servo rows of an encoder plan CSV (header [`PLAN_HEADER`]); any other row is
@@ -133,7 +135,7 @@ pub fn parse_servo_plan(text: &str) -> Result<Vec<ServoRow>, String> {
                 ramp_s: num(5)?,
                 holding_current_a: 0.0,
             };
-            Ok(ServoRow { row, bandwidth_hz: num(8)? })
+            Ok(ServoRow { row, bandwidth_hz: num(8)?, d_current_a: num(7)? })
         })
         .collect()
 }
@@ -209,7 +211,7 @@ pub fn run(m: &RealMotor, d: &ServoDrive, p: &ServoRow, seed: u64) -> String {
             v_now.0, v_now.1
         );
         // Current PI in the encoder frame, output advanced by 1.5 periods.
-        let (ed, eq) = (-id_m, iq_cmd - iq_m);
+        let (ed, eq) = (p.d_current_a - id_m, iq_cmd - iq_m);
         let (vd, vq) = (kpc * ed + xd, kpc * eq + xq);
         let (s2, c2) = (te_fb + 1.5 * ts * nr * omega_fb).sin_cos();
         let (va, vb) = (vd * c2 - vq * s2, vd * s2 + vq * c2);
