@@ -62,7 +62,7 @@ mod independent;
 #[allow(dead_code)] // the compensation check and the user's base only
 mod real;
 
-use independent::servo_real::{RealMotor, ServoDrive, parse_servo_plan, run};
+use independent::servo_real::{RealMotor, ServoDrive, ServoRow, parse_servo_plan, run};
 use independent::truth::{POINTS, ripple_error, servo_plant, truth_profile};
 use independent::{Motor, RealDraw, real_draw, stress_friction};
 use rand::{Rng, SeedableRng};
@@ -109,6 +109,18 @@ fn real_motor(seed: u64, base: &Profile) -> (RealMotor, ServoDrive) {
         noise_a: 0.01,
     };
     (motor, drive)
+}
+
+/// The logs of `rows` performed by the generator on motor `m` with drive `d` (run `i`'s noise
+/// seed `1000·seed + i`), written as CSV and read back.
+fn logs_of(m: &RealMotor, d: &ServoDrive, rows: &[ServoRow], seed: u64) -> Vec<RunLog> {
+    rows.iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let csv = run(m, d, r, 1000 * seed + i as u64);
+            parse_log(csv.as_bytes(), &r.row.run, &LogOptions::new(m.mech.nr)).unwrap()
+        })
+        .collect()
 }
 
 /// The worst harmonic error of `id` against the generator's truth over the three operating
@@ -186,14 +198,7 @@ fn family(seeds: std::ops::Range<u64>, j: BaseInertia, sweeps: bool) {
         .into_par_iter()
         .map(|seed| {
             let (m, d) = real_motor(seed, &base);
-            let logs: Vec<RunLog> = rows
-                .iter()
-                .enumerate()
-                .map(|(i, r)| {
-                    let csv = run(&m, &d, r, 1000 * seed + i as u64);
-                    parse_log(csv.as_bytes(), &r.row.run, &LogOptions::new(m.mech.nr)).unwrap()
-                })
-                .collect();
+            let logs = logs_of(&m, &d, &rows, seed);
             let user = match j {
                 BaseInertia::Preset => p.profile.clone(),
                 BaseInertia::True => p.profile.edited(&p.profile.name, |d| d.motor.inertia_kg_m2 = m.mech.j).unwrap(),
@@ -305,14 +310,7 @@ fn servo_runs_with_a_d_current_bias_are_identified_with_their_measured_i_d() {
         .into_par_iter()
         .map(|seed| {
             let (m, d) = real_motor(seed, &base);
-            let logs: Vec<RunLog> = rows
-                .iter()
-                .enumerate()
-                .map(|(i, r)| {
-                    let csv = run(&m, &d, r, 1000 * seed + i as u64);
-                    parse_log(csv.as_bytes(), &r.row.run, &LogOptions::new(m.mech.nr)).unwrap()
-                })
-                .collect();
+            let logs = logs_of(&m, &d, &rows, seed);
             // The motor's own J in the base, which isolates the d current's part (the fit of J
             // is the acceptance's concern).
             let user = p.profile.edited(&p.profile.name, |x| x.motor.inertia_kg_m2 = m.mech.j).unwrap();
