@@ -291,8 +291,10 @@ const D_BIAS_MOTORS: u64 = 4;
 /// `i_d`-driven ripple is fitted as detent), or the bias would be too small to show anything.
 /// Measured: 0.11–0.18 of the tolerance counted, 6.5–12.4 dropped. With the preset's `J` in
 /// the base instead, the fit held `J` on motor 2 (fitted at `i_d = 0`), which put its `A₄`
-/// 17 % low (2.64 of the tolerance). Why it was not fitted there is not examined; a
-/// candidate is the torque `Km·i_d·sin ε` of a d current commutated at the count's centre
+/// 17 % low (2.64 of the tolerance), with the fit's warnings saying why: the count-rate rule
+/// left the slow runs out (friction 7 % below the fast runs': the rotor stops and starts
+/// inside counts), one speed was left and `J` was held. At `i_d = 0` those runs are kept; a
+/// likely cause is the torque `Km·i_d·sin ε` of a d current commutated at the count's centre
 /// (`ε` the quantisation error), which shakes the rotor at the count rate.
 #[test]
 fn servo_runs_with_a_d_current_bias_are_identified_with_their_measured_i_d() {
