@@ -282,10 +282,12 @@ fn compensation_current(cfg: &Config, st: &mut State, at: &CompensationAngle, op
     // The operating point in the rotor's frame (δ̂ = 0 without the observer), and the
     // torque per ampere the compensation current itself makes there (docs/design.md#real-motors-flux-harmonics).
     let (i_d, i_q) = (op.d * cd - op.q * sd, op.d * sd + op.q * cd);
-    let v = cfg.ripple.eval(cs, cc, i_d, i_q);
+    let v =
+        if at.observed { cfg.ripple.eval_with_emf_slopes(cs, cc, i_d, i_q) } else { cfg.ripple.eval(cs, cc, i_d, i_q) };
     if at.observed {
-        // The back-EMF's lead at this rotor angle, for the observer's next period.
-        st.observer.emf_angle_error_rad = -v.per_amp_d / crate::at_least(1.0 - v.per_amp_q, crate::ripple::MIN_DIVISOR);
+        // The back-EMF's lead at this rotor angle, for the observer's next period,
+        // evaluated where the rotor is, ahead of the filter's delayed estimate.
+        st.observer.emf_angle_error_rad = crate::ripple::back_emf_angle_rad(&v, st.observer.delta_lead_rad);
         // Its harmonics, which the current loop cannot follow, fed forward (at the
         // commanded speed and the measured torque constant).
         let km_omega = st.observer.km_hat * st.speed_cmd_rad_s;

@@ -43,13 +43,20 @@
 //! `Km` does not turn into a wrong compensation amplitude. The current loop's integral
 //! gain follows `R̂` as well (`Ki = R̂·ωc`), which keeps the loop first order.
 //!
+//! A real motor's back-EMF is off its rotor's q axis by an angle `ε(θe)` that the estimated
+//! law gives ([`ObserverState::emf_angle_error_rad`]); the observer turns each period's
+//! back-EMF back by it. `ε` is evaluated where the rotor is: the fast filter delays `δ̂`, so the
+//! observer also tracks that delay's size ([`ObserverState::delta_lead_rad`], the estimate's
+//! change per period through a 1 kHz filter times the fast filter's lag in periods)
+//! (docs/design.md#the-back-emfs-angle-where-the-rotor-is).
+//!
 //! Assumptions: `L` known; `R` known or trimmed at standstill; the applied voltage equals
 //! the commanded one (no dead time). Cost while the motor runs: two `libm::atan2f`
 //! (single precision throughout, FPU only: `atanf`'s polynomial in `f32`, checked by
 //! `firmware/qemu-m4/check-symbols.sh`), one `libm::sqrtf`, about 60 flops per period;
-//! the step adds one [`crate::trig::sin_cos_rad`] of `δ̂`. About 560 instructions of the
+//! the step adds one [`crate::trig::sin_cos_rad`] of `δ̂`. About 590 instructions of the
 //! estimated-angle step on the Cortex-M4F (the medians in `firmware/qemu-m4/instructions.txt`:
-//! 1,080 against 522 for the patent's open loop).
+//! 1,116 against 530 for the patent's open loop).
 
 use crate::lowpass::LowPass;
 use crate::park::{Ab, Dq};
@@ -121,10 +128,24 @@ pub struct LoadAngleObserver {
     pub(crate) settle_periods: u16,
     /// Filter of the torque-constant estimate.
     pub(crate) km_filter: LowPass,
+    /// Filter of the load-angle estimate's change per period ([`LEAD_RATE_HZ`]).
+    pub(crate) rate_filter: LowPass,
+    /// The fast filter's lag in periods at low frequency, `(1 − α)/α`: the estimate's
+    /// filtered change per period times this is how far the load angle is ahead of it.
+    pub(crate) lag_periods: f32,
 }
 
 /// Corner of the slow estimate and of the variance trackers, Hz.
 const SLOW_HZ: f32 = 5.0;
+
+/// Corner of the filter of the estimate's rate of change, Hz: twice the fast filter's
+/// (500 Hz), so it passes the swing at resonance (130 Hz for the patent motor, up to about
+/// 200 Hz on the real-motor family) but not the sample-to-sample noise that its unfiltered
+/// difference would multiply by the lag in periods (6 at 500 Hz and 20 kHz). Measured on
+/// motor 0 of the independent real-motor family
+/// (docs/design.md#the-back-emfs-angle-where-the-rotor-is): unfiltered, the lead made the
+/// parametric resonance worse at one speed of five; at 1 and 2 kHz it removed it at all five.
+const LEAD_RATE_HZ: f32 = 1000.0;
 
 /// Back-EMF, in units of the floor, above which `K̂m` is tracked.
 const KM_MIN_EMF_FLOORS: f32 = 20.0;
@@ -162,6 +183,18 @@ pub struct ObserverState {
     /// ampere), set by the estimated law; the back-EMF is turned back by it before both
     /// filters. 0 for a pure-sine motor (docs/design.md#real-motors-flux-harmonics).
     pub emf_angle_error_rad: f32,
+    /// The last load-angle estimate, electrical rad (for its rate of change).
+    delta_prev_rad: f32,
+    /// The estimate's change per period through the rate filter, electrical rad.
+    delta_rate_rad: f32,
+    /// How far the load angle is ahead of the estimate `δ̂` that the fast filter delays,
+    /// electrical rad: the filtered rate times the filter's lag in periods. The estimated
+    /// law evaluates `ε` (above) at the rotor angle this much further behind; evaluated at
+    /// the delayed angle, `ε`'s error made the parametric resonance grow on one motor of the
+    /// real-motor family (docs/design.md#the-back-emfs-angle-where-the-rotor-is). Not applied
+    /// to the compensation's own angle, where it made that resonance worse at every speed
+    /// tried.
+    pub delta_lead_rad: f32,
 }
 
 impl ObserverState {
@@ -179,6 +212,7 @@ impl ObserverState {
             && self.r_hat_ohm.is_finite()
             && self.km_hat.is_finite()
             && self.km_hat > 0.0
+            && self.delta_lead_rad.is_finite()
     }
 }
 
@@ -213,6 +247,11 @@ impl LoadAngleObserver {
             delay_periods: delay_periods.min(1),
             km,
             km_filter: LowPass::new(5.0, period_s),
+            rate_filter: LowPass::new(LEAD_RATE_HZ, period_s),
+            lag_periods: {
+                let a = LowPass::new(bandwidth_hz, period_s).alpha();
+                if a > 0.0 { (1.0 - a) / a } else { 0.0 }
+            },
             settle_periods: {
                 let tau_periods = 1.0 / (core::f32::consts::TAU * current_loop_bandwidth_hz * period_s);
                 // `as` saturates (and maps NaN to 0): the bound keeps it meaningful.
@@ -265,6 +304,7 @@ impl LoadAngleObserver {
         } else {
             self.estimate_angle(st, direction, input.speed_rad_s);
         }
+        self.track_lead(st);
         if !st.is_sound() {
             self.restart(st);
         }
@@ -375,6 +415,14 @@ impl LoadAngleObserver {
         }
     }
 
+    /// The estimate's lead ([`ObserverState::delta_lead_rad`]) from its filtered change.
+    #[inline(always)]
+    fn track_lead(&self, st: &mut ObserverState) {
+        self.rate_filter.update(&mut st.delta_rate_rad, st.delta_rad - st.delta_prev_rad);
+        st.delta_prev_rad = st.delta_rad;
+        st.delta_lead_rad = self.lag_periods * st.delta_rate_rad;
+    }
+
     /// Restarts the filters and the histories (a broken sample or voltage history), but
     /// keeps what was learnt of the motor if it is sound: the standstill trim of `R̂` cannot
     /// be redone while the motor runs. An unsound `R̂` or `K̂m` falls back to the configured
@@ -406,6 +454,7 @@ impl LoadAngleObserver {
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
     use super::*;
     use core::f32::consts::TAU;
 
@@ -493,6 +542,45 @@ mod tests {
         run_with_emf_lead(&obs, &mut turned, w, delta, lead, R, 20_000);
         assert_eq!(turned.emf_angle_error_rad, lead, "the observer keeps the law's value");
         assert!((turned.delta_rad - delta).abs() < 0.01, "corrected {}", turned.delta_rad);
+    }
+
+    /// A rotor swinging at `f_hz` around a load angle of 0.2 rad, 0.05 rad deep: the rms
+    /// error of `δ̂` and of `δ̂ + lead` against the load angle one period ago (the estimate's
+    /// back-EMF is the last period's), over the last 0.1 s of 0.3 s.
+    fn swing_errors(f_hz: f32) -> (f32, f32) {
+        let obs = observer(R, KM);
+        let mut st = ObserverState::default();
+        let (w, i) = (10.0, Dq { d: 1.9, q: 0.0 });
+        let (we, mut th) = (50.0 * w, 0.0f32);
+        let delta = |n: usize| 0.2 + 0.05 * libm::sinf(TAU * f_hz * n as f32 * TS);
+        let (mut plain, mut led, mut count) = (0.0f32, 0.0f32, 0.0f32);
+        for n in 0..6_000 {
+            obs.update(&mut st, &input(rot(th, i), th, we * TS, w));
+            if n >= 4_000 {
+                let truth = delta(n - 1);
+                plain += (st.delta_rad - truth).powi(2);
+                led += (st.delta_rad + st.delta_lead_rad - truth).powi(2);
+                count += 1.0;
+            }
+            let d = delta(n);
+            let e = Dq { d: KM * w * libm::sinf(d), q: KM * w * libm::cosf(d) };
+            let v = Dq { d: R * i.d + e.d, q: e.q + we * L * i.d };
+            obs.record(&mut st, rot(th + 0.5 * we * TS, v), i);
+            th = (th + we * TS) % TAU;
+        }
+        (libm::sqrtf(plain / count), libm::sqrtf(led / count))
+    }
+
+    #[test]
+    fn the_lead_takes_the_fast_filters_delay_off_a_swinging_load_angle() {
+        // At 110 Hz the 500 Hz filter lags 0.22 rad: 0.0075 rad rms of a 0.05 rad swing. The
+        // lead must take most of it off, at the patent motor's resonance and at the family's
+        // fastest (200 Hz). Measured: 23 % and 15 % of it remain.
+        for f in [110.0, 200.0] {
+            let (plain, led) = swing_errors(f);
+            assert!(plain > 0.006, "{f} Hz: the filter's delay is only {plain} rad: the test proves nothing");
+            assert!(led < 0.3 * plain, "{f} Hz: rms error {led} rad with the lead, {plain} without");
+        }
     }
 
     #[test]

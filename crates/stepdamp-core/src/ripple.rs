@@ -97,6 +97,10 @@ pub struct RippleValue {
     pub per_amp_d: f32,
     /// `cq(θe)`, A/A.
     pub per_amp_q: f32,
+    /// `dcd/dθe`, A/A per rad ([`RippleModel::eval_with_emf_slopes`] only, else 0).
+    pub per_amp_d_slope: f32,
+    /// `dcq/dθe`, A/A per rad ([`RippleModel::eval_with_emf_slopes`] only, else 0).
+    pub per_amp_q_slope: f32,
 }
 
 impl RippleModel {
@@ -155,8 +159,22 @@ impl RippleModel {
     /// currents `i_d`, `i_q` (A), in one pass over the orders (one rotation per order, as
     /// [`HarmonicSeries::eval_with_derivatives`]). Kept out of line: only a motor with
     /// current parts calls it, and the step inlines its two callers (open loop, servo).
+    /// The slopes of `cd`, `cq` are left 0: only the estimated law needs them
+    /// ([`RippleModel::eval_with_emf_slopes`]), and the servo law does not pay for them.
     #[inline(never)]
     pub fn eval(&self, s1: f32, c1: f32, i_d: f32, i_q: f32) -> RippleValue {
+        self.eval_impl::<false>(s1, c1, i_d, i_q)
+    }
+
+    /// [`RippleModel::eval`] with the slopes of `cd`, `cq` in `θe` as well
+    /// ([`back_emf_angle_rad`] needs them).
+    #[inline(never)]
+    pub fn eval_with_emf_slopes(&self, s1: f32, c1: f32, i_d: f32, i_q: f32) -> RippleValue {
+        self.eval_impl::<true>(s1, c1, i_d, i_q)
+    }
+
+    #[inline(always)]
+    fn eval_impl<const SLOPES: bool>(&self, s1: f32, c1: f32, i_d: f32, i_q: f32) -> RippleValue {
         let (f, d, q) = (&self.fixed, &self.per_amp_d, &self.per_amp_q);
         let orders = f.max_order.max(d.max_order).max(q.max_order).min(MAX_HARMONIC_ORDER);
         let (mut sk, mut ck) = (s1, c1);
@@ -171,6 +189,10 @@ impl RippleModel {
             v.curvature -= kf * kf * term;
             v.per_amp_d += d.sin_coef[k] * sk + d.cos_coef[k] * ck;
             v.per_amp_q += q.sin_coef[k] * sk + q.cos_coef[k] * ck;
+            if SLOPES {
+                v.per_amp_d_slope += kf * (d.sin_coef[k] * ck - d.cos_coef[k] * sk);
+                v.per_amp_q_slope += kf * (q.sin_coef[k] * ck - q.cos_coef[k] * sk);
+            }
             let next_s = sk * c1 + ck * s1;
             ck = ck * c1 - sk * s1;
             sk = next_s;
@@ -184,6 +206,20 @@ impl RippleModel {
 #[inline]
 pub fn divisor(v: &RippleValue, sin_delta: f32, cos_delta: f32) -> f32 {
     crate::at_least(cos_delta * (1.0 - v.per_amp_q) + sin_delta * v.per_amp_d, MIN_DIVISOR)
+}
+
+/// The angle `ε` by which a real motor's back-EMF leads its rotor's q axis (towards +d) at
+/// the rotor angle `lag` rad (electrical) behind the one `v` was evaluated at, electrical
+/// rad: `ε ≈ −cd/(1 − cq)` (the back-EMF per rad/s is the torque per ampere,
+/// docs/design.md#real-motors-flux-harmonics), moved along its slope
+/// `ε' = −(cd' − ε·cq')/(1 − cq)` by `−ε'·lag` (first order: `lag` is a few mrad). 0 for a
+/// pure sine (`cd`, `cq` and their slopes 0).
+#[inline(always)]
+pub fn back_emf_angle_rad(v: &RippleValue, lag: f32) -> f32 {
+    let den = crate::at_least(1.0 - v.per_amp_q, MIN_DIVISOR);
+    let eps = -v.per_amp_d / den;
+    let slope = -(v.per_amp_d_slope - eps * v.per_amp_q_slope) / den;
+    eps - slope * lag
 }
 
 /// The back-EMF of the ripple's current parts at the rotor angle of `v`, in V, in the

@@ -17,7 +17,7 @@
 //! order-2 one included (with flux harmonics also a parametric resonance). All 50 (release,
 //! the plan's runs as `identify plan` prints them, 40 electrical periods; CI's 6 run 15):
 //! ripple worst 0.45 of the tolerance (median 0.10), patent's law worst 89 % of the true
-//! profile's dB, estimated mode worst 17.1× (median 70.8×); before the estimated law fed the
+//! profile's dB, estimated mode worst 18.0× (median 71.0×; 17.1× and 70.8× before the observer evaluated `ε` where the rotor is); before the estimated law fed the
 //! ripple's back-EMF forward (docs/design.md#the-ripples-back-emf) 3 motors stayed below 10×,
 //! worst 7.5×, and so did the true profile there.
 //!

@@ -41,16 +41,16 @@
 //! ([`servo_plant`]: its detent, flux, `J`, `Fs` and friction law) and the identified
 //! profile as the controller; the patent's law ≥ 80 % of the true profile's dB at orders 4
 //! and 1, the estimated mode ≥ 10× at orders 4, 2 and 1. It runs the plan as `identify plan`
-//! prints it (40 electrical periods per run; the CI tests above run 15). It fails on 1 of
-//! the 16: patent's law worst 86 % (motor 6; median 98 %), estimated mode worst 2.5× on
-//! motor 0 (median 61.6×; 22.8× without motor 0).
+//! prints it (40 electrical periods per run; the CI tests above run 15). All 16 pass:
+//! patent's law worst 86 % (motor 6; median 98 %), estimated mode worst 12.2× (motor 0 at
+//! order 2; median 61.6×).
 //!
-//! * Motor 0, order 2: the estimated mode 2.5×, where the true profile gets 2.0×: the
-//!   estimated law's own limit on this motor, not identification's. It comes from the third
-//!   (1.3 %) and fifth (1.0 %) flux harmonics together: the true profile gets 135× without
-//!   the fifth, 29× without the third, 112× without both; Karnopp friction instead of the
-//!   smooth law changes nothing. The load-angle observer's fast filter lag drives it
-//!   (docs/identification.md#the-real-motor-family: a lead on it helps, then breaks the law).
+//! * Motor 0, order 2: the estimated mode 2.5× (2.0× with the true profile) until the observer
+//!   evaluated the back-EMF's angle `ε` ahead of its filter's delay
+//!   (docs/design.md#the-back-emfs-angle-where-the-rotor-is): its third (1.3 %) and fifth
+//!   (1.0 %) together make `ε` steep, and the delayed `ε` pumped the parametric resonance
+//!   (the true profile got 135× without the fifth, 29× without the third). Now 12.2× (true
+//!   profile 18.0×).
 //! * Motor 13, order 4, failed until the fit computed the torque at the rotor's edge-timed
 //!   angle with the logs' measured `i_d` (docs/identification.md#a-motor-with-flux-harmonics):
 //!   70 % (23.4 dB of the true profile's 33.5 dB), now 88 % (29.5 dB). Its order-4 ripple at

@@ -313,3 +313,32 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn the_back_emf_angle_moved_by_a_lag_is_the_angle_at_the_lagging_rotor() {
+    // `back_emf_angle_rad(v(θ), lag)` is `ε(θ − lag)` to first order: at 10 mrad its error is
+    // second order (measured 1.2e-4 rad at worst), where ignoring the lag errs by `ε'·lag`
+    // (5.0e-3 rad here, with `cd` up to 0.1 A/A at order 4).
+    let cfg = Config::new(&params(Mode::OpenLoop, Compensation::Estimated, RIPPLE)).unwrap();
+    let lag = 0.01f32;
+    let at = |te: f32| {
+        let (s, c) = libm::sincosf(te);
+        cfg.ripple.eval_with_emf_slopes(s, c, 1.9, 0.0)
+    };
+    let (mut worst, mut worst_ignored) = (0.0f32, 0.0f32);
+    for n in 0..200 {
+        let te = n as f32 * core::f32::consts::TAU / 200.0 - core::f32::consts::PI;
+        let exact = back_emf_angle_rad(&at(te - lag), 0.0);
+        worst = worst.max((back_emf_angle_rad(&at(te), lag) - exact).abs());
+        worst_ignored = worst_ignored.max((back_emf_angle_rad(&at(te), 0.0) - exact).abs());
+    }
+    assert!(worst < 2.5e-4, "first-order move off by {worst} rad");
+    assert!(worst_ignored > 2e-3, "the lag hardly matters here ({worst_ignored} rad): the test proves nothing");
+}
+
+#[test]
+fn the_back_emf_angle_of_a_pure_sine_is_zero_at_any_lag() {
+    let v = RippleValue::default();
+    assert_eq!(back_emf_angle_rad(&v, 0.0), 0.0);
+    assert_eq!(back_emf_angle_rad(&v, 0.3), 0.0);
+}
