@@ -197,7 +197,7 @@ pub fn run_export(a: ExportArgs, _g: &Global) -> Result<()> {
                 Some(o) => bail!("--axis {}: Prusa phase stepping has axes X and Y", escape::line(o)),
             };
             let Some(run) = current else { bail!("export prusa needs the run current") };
-            let (mut f, table, how) = prusa_files(&a, &p.name, &c, run, axis)?;
+            let (mut f, table, how) = prusa_files(&a, &p, &c, run, axis)?;
             files.append(&mut f);
             wrote = how;
             (Compensation::Table, Some(table))
@@ -273,19 +273,22 @@ type OutFile = (PathBuf, Vec<u8>);
 /// written G-code makes (read back from the text itself) for the prediction.
 fn prusa_files(
     a: &ExportArgs,
-    name: &str,
+    p: &stepdamp_sim::Profile,
     c: &Correction,
     current: RunCurrent,
     axis: char,
 ) -> Result<(Vec<OutFile>, stepdamp_core::CorrectionTable, String)> {
     let fw: prusa::Firmware = a.firmware.unwrap_or(PrusaFirmware::V6_3_1).into();
     let fitted = prusa::fit(c, fw)?;
-    let text = prusa::gcode::write(&fitted, axis, &prusa::gcode::Header { profile: name, current })?;
+    let text = prusa::gcode::write(&fitted, axis, &prusa::gcode::Header { profile: &p.name, current })?;
     let (written, _) = prusa::parse_text(&text, Some(axis), "the exported G-code")?;
     if written != fitted.correction {
         bail!("internal: the exported G-code reads back to another correction");
     }
     out!("{fitted}");
+    if fitted.kept < 1.0 {
+        out!("{}", prusa::headroom::headroom(p, c)?);
+    }
     let (f, b) = (sibling(&a.out, ".fwd.bin"), sibling(&a.out, ".bck.bin"));
     let how = match fw {
         prusa::Firmware::V6_3_1 => format!("M970 {axis}0, M971 {axis} F|B x17, M970 {axis}1"),

@@ -282,6 +282,33 @@ fn an_out_of_range_correction_is_scaled_never_wrapped_with_the_share_kept_and_it
     assert!(t.contains("simulated: open loop, table replay") && t.contains("order  4 at"), "{t}");
     let g = lines_of(&out);
     assert!(g.iter().any(|l| l.starts_with("; correction kept: 7")), "{g:?}");
+    // It says from which run current the whole correction fits, and exported there it does.
+    let at = t
+        .lines()
+        .find_map(|l| l.split("fits the table from a run current of ").nth(1))
+        .and_then(|r| r.split(" A peak").next())
+        .unwrap_or_else(|| panic!("no run current at which it fits: {t}"));
+    let rms = t
+        .lines()
+        .find_map(|l| l.split("(current vector) = ").nth(1).filter(|_| l.contains("fits the table")))
+        .and_then(|r| r.split(" A RMS").next())
+        .unwrap_or_else(|| panic!("no RMS current at which it fits: {t}"));
+    for (flag, value) in [("--current", at), ("--current-rms", rms)] {
+        let whole = stepdamp(&[
+            "export",
+            "prusa",
+            "--motor",
+            "patent-motor",
+            flag,
+            value,
+            "--out",
+            out.to_str().unwrap(),
+            "--duration",
+            "0",
+        ]);
+        assert!(whole.status.success(), "{}", text(&whole));
+        assert!(text(&whole).contains("correction kept: 100 %"), "{flag} {value}: {}", text(&whole));
+    }
 }
 
 #[test]

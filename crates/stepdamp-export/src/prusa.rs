@@ -17,6 +17,7 @@
 
 pub mod fixed;
 pub mod gcode;
+pub mod headroom;
 pub mod read;
 
 pub use read::{parse_bytes, parse_m971, parse_m972, parse_m973, parse_text};
@@ -222,12 +223,7 @@ pub fn fit(c: &Correction, fw: Firmware) -> Result<Fitted, ExportError> {
         sp
     };
     let unit = f64::from(SIN_PERIOD) / std::f64::consts::TAU;
-    let wanted_peak_shift = (0..TABLE_TICKS)
-        .map(|i| {
-            let th = std::f64::consts::TAU * i as f64 / TABLE_TICKS as f64;
-            (unit * c.delta_rad(th)).abs()
-        })
-        .fold(0.0, f64::max);
+    let wanted_peak_shift = unit * headroom::wanted_peak_rad(c);
     let mut s = 1.0;
     for _ in 0..1000 {
         let sp = build(s);
