@@ -232,8 +232,8 @@ fn independent_real_motors_ripple_is_identified_sensorless_and_compensates_as_th
 /// within 5.7·10⁻⁴ of the motor's; no turn run left out; `J` within 2 % except motor 0
 /// (+6.3 %, Karnopp, `Fs` 18 mN·m). The compensation check passes on all 16: the patent's law
 /// worst 91 % of the true profile's dB (motor 9, order 1: 24.0 dB of 26.5), median 98 %; the
-/// estimated mode worst 37.1× (motor 5, order 2, where the true profile gets 34.4×), median
-/// 61.2×.
+/// estimated mode worst 37.1× (motor 5, order 2, where the true profile gets 34.5×), median
+/// 67.3× (61.2× before the observer evaluated the back-EMF's angle where the rotor is).
 #[test]
 #[ignore = "16 motors, release: minutes (module documentation)"]
 fn sixteen_independent_real_motors_ripple_is_identified_sensorless_and_compensates_as_the_true_profile() {
