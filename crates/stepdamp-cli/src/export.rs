@@ -287,7 +287,11 @@ fn prusa_files(
     }
     out!("{fitted}");
     if fitted.kept < 1.0 {
-        out!("{}", prusa::headroom::headroom(p, c)?);
+        // Advice, not the export: a profile the scan cannot evaluate still gets its G-code.
+        match prusa::headroom::headroom(p, c, fw) {
+            Ok(h) => out!("{h}"),
+            Err(e) => eprintln!("warning: no advice on the run current at which the correction fits: {e}"),
+        }
     }
     let (f, b) = (sibling(&a.out, ".fwd.bin"), sibling(&a.out, ".bck.bin"));
     let how = match fw {

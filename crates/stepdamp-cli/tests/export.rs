@@ -285,7 +285,7 @@ fn an_out_of_range_correction_is_scaled_never_wrapped_with_the_share_kept_and_it
     // It says from which run current the whole correction fits, and exported there it does.
     let at = t
         .lines()
-        .find_map(|l| l.split("fits the table from a run current of ").nth(1))
+        .find_map(|l| l.split("fits the table at a run current of ").nth(1))
         .and_then(|r| r.split(" A peak").next())
         .unwrap_or_else(|| panic!("no run current at which it fits: {t}"));
     let rms = t

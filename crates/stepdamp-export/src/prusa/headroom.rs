@@ -7,7 +7,7 @@
 //! as far as the detent dominates. [`super::fit`] scales a correction that does not fit down
 //! (every order alike); this module says at which run current it would not have to.
 
-use super::{SHIFT_LIMIT, SIN_PERIOD};
+use super::{Firmware, SHIFT_LIMIT, SIN_PERIOD};
 use crate::{Correction, ExportError, RunCurrent};
 use stepdamp_core::TABLE_TICKS;
 use stepdamp_sim::Profile;
@@ -25,33 +25,53 @@ pub fn wanted_peak_rad(c: &Correction) -> f64 {
 }
 
 /// Steps of [`lowest_fitting_current_a`]'s scan: the currents are `from·(up_to/from)^(n/STEPS)`,
-/// so the answer is at most `(up_to/from)^(1/STEPS)` above the exact one (0.4 % for a 2:1 range).
+/// so the answer is at most `(up_to/from)^(1/STEPS)` above the exact one (0.35 % for a 2:1
+/// range).
 const STEPS: u32 = 200;
 
+/// Whether [`super::fit`] writes `p`'s correction at run current `peak_a` (A) unscaled: the
+/// same criterion, quantisation and all, as the export itself.
+fn fits_whole(p: &Profile, peak_a: f64, fw: Firmware) -> Result<bool, ExportError> {
+    Ok(super::fit(&Correction::from_profile(p, Some(peak_a))?, fw)?.kept == 1.0)
+}
+
 /// The lowest run current (peak, A) in `[from_a, up_to_a]` at which `p`'s correction
-/// ([`Correction::from_profile`] at that current) fits the table unscaled, found on a
-/// geometric grid of [`STEPS`] steps (rounded up to it); `None` when none does. Errors as
-/// [`Correction::from_profile`], and for a range that is not `0 < from_a ≤ up_to_a`.
-pub fn lowest_fitting_current_a(p: &Profile, from_a: f64, up_to_a: f64) -> Result<Option<f64>, ExportError> {
+/// ([`Correction::from_profile`] at that current) is written whole for `fw`, found on a
+/// geometric grid of [`STEPS`] steps whose last point is `up_to_a` itself (the answer is a
+/// grid point: at most one step above the exact one); `None` when no grid point does. Errors
+/// as [`Correction::from_profile`] and [`super::fit`], and for a range that is not
+/// `0 < from_a ≤ up_to_a`.
+pub fn lowest_fitting_current_a(
+    p: &Profile,
+    from_a: f64,
+    up_to_a: f64,
+    fw: Firmware,
+) -> Result<Option<f64>, ExportError> {
     if !(from_a.is_finite() && up_to_a.is_finite() && from_a > 0.0 && from_a <= up_to_a) {
         return Err(ExportError::Invalid(format!(
             "run current range {from_a}..{up_to_a} A: must be finite with 0 < from ≤ up to"
         )));
     }
-    let limit = limit_rad();
     for n in 0..=STEPS {
-        let i = from_a * (up_to_a / from_a).powf(f64::from(n) / f64::from(STEPS));
-        if wanted_peak_rad(&Correction::from_profile(p, Some(i))?) <= limit {
+        // The last point is the limit itself: `powf(1)` may land an ulp above it, which the
+        // ripple's current limit refuses.
+        let i = if n == STEPS {
+            up_to_a
+        } else {
+            (from_a * (up_to_a / from_a).powf(f64::from(n) / f64::from(STEPS))).min(up_to_a)
+        };
+        if fits_whole(p, i, fw)? {
             return Ok(Some(i));
         }
     }
     Ok(None)
 }
 
-/// Where a correction that had to be scaled would fit whole ([`headroom`]).
+/// Where a correction that had to be scaled would be written whole ([`headroom`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Headroom {
-    /// The lowest run current that fits, if any up to [`Headroom::searched_up_to`].
+    /// A run current at which it is, as a user would type it (a whole mA of RMS whose peak
+    /// and RMS, as displayed, both fit), if one up to [`Headroom::searched_up_to`] does.
     pub fits_at: Option<RunCurrent>,
     /// The highest run current searched: the profile's current limit.
     pub searched_up_to: RunCurrent,
@@ -62,47 +82,57 @@ impl std::fmt::Display for Headroom {
         match self.fits_at {
             Some(i) => writeln!(
                 f,
-                "the whole correction fits the table from a run current of {i} (searched up to the profile's \
+                "the whole correction fits the table at a run current of {i} (the lowest found up to the profile's \
                  current limit, {:.3} A peak); whether the motor and driver may run that hot is yours to check",
                 self.searched_up_to.peak_a()
             ),
             None => writeln!(
                 f,
-                "no run current up to the profile's current limit ({:.3} A peak) fits the whole correction: \
-                 the part of the ripple that grows with the current does not shrink with it",
+                "no run current, set to the mA, up to the profile's current limit ({:.3} A peak) fits the whole correction \
+                 (with flux harmonics, the part of the ripple that grows with the current does not shrink with it)",
                 self.searched_up_to.peak_a()
             ),
         }
     }
 }
 
-/// [`lowest_fitting_current_a`] from the run current `c` was exported for up to `p`'s current
-/// limit (`drive.current_limit_a`; at least `c`'s), rounded up so that both numbers a user may
-/// copy from its three-decimal display, the peak for `--current` and the RMS for
-/// `--current-rms`, are at or above it ([`copyable`]).
-pub fn headroom(p: &Profile, c: &Correction) -> Result<Headroom, ExportError> {
-    let up_to = p.drive.current_limit_a.max(c.holding_current_a);
-    Ok(Headroom {
-        fits_at: lowest_fitting_current_a(p, c.holding_current_a, up_to)?.map(copyable).transpose()?,
-        searched_up_to: RunCurrent::from_peak(up_to)?,
-    })
-}
+/// Mill-amperes of RMS [`headroom`] tries above the scan's answer for one whose displayed
+/// values fit too: a few are enough where the wanted shift falls with the current.
+const COPYABLE_TRIES: u32 = 8;
 
-/// The run current at or above `peak_a` whose RMS is a whole mA and whose peak, rounded to
-/// the mA as [`RunCurrent`]'s display prints it, is not below `peak_a` either.
-fn copyable(peak_a: f64) -> Result<RunCurrent, ExportError> {
-    let mut rms_ma = (1e3 * peak_a / std::f64::consts::SQRT_2).ceil();
-    // Two steps at most: one mA of RMS is 1.41 mA of peak.
-    while (rms_ma * std::f64::consts::SQRT_2).round() < (1e3 * peak_a).ceil() {
-        rms_ma += 1.0;
+/// [`lowest_fitting_current_a`] from the run current `c` was exported for up to `p`'s current
+/// limit (`drive.current_limit_a`; at least `c`'s), then the first whole mA of RMS at or
+/// above it, within the limit, at which both numbers a user may copy from [`RunCurrent`]'s
+/// three-decimal display (the peak for `--current`, the RMS for `--current-rms`) are written
+/// whole too: a flux profile's wanted shift need not fall monotonically with the current, so
+/// each is checked, not assumed.
+pub fn headroom(p: &Profile, c: &Correction, fw: Firmware) -> Result<Headroom, ExportError> {
+    let up_to = p.drive.current_limit_a.max(c.holding_current_a);
+    let searched_up_to = RunCurrent::from_peak(up_to)?;
+    let Some(lowest) = lowest_fitting_current_a(p, c.holding_current_a, up_to, fw)? else {
+        return Ok(Headroom { fits_at: None, searched_up_to });
+    };
+    let shown = |x: f64| (1e3 * x).round() / 1e3;
+    let first_rms_ma = (1e3 * lowest / std::f64::consts::SQRT_2).ceil();
+    for rms_ma in (0..COPYABLE_TRIES).map(|k| first_rms_ma + f64::from(k)) {
+        let at = RunCurrent::from_rms(rms_ma / 1e3)?;
+        let typed = [shown(at.peak_a()), shown(at.rms_a()) * std::f64::consts::SQRT_2];
+        if typed.iter().any(|&t| t > up_to) {
+            break;
+        }
+        if typed.iter().try_fold(true, |ok, &t| Ok::<_, ExportError>(ok && fits_whole(p, t, fw)?))? {
+            return Ok(Headroom { fits_at: Some(at), searched_up_to });
+        }
     }
-    RunCurrent::from_rms(rms_ma / 1e3)
+    Ok(Headroom { fits_at: None, searched_up_to })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use stepdamp_sim::profile::DetentTerm;
+    use stepdamp_sim::profile::{DetentTerm, FluxHarmonic};
+
+    const FW: Firmware = Firmware::V6_3_1;
 
     /// patent-motor with a 4th-order detent of `a4` N·m only.
     fn detent_only(a4: f64) -> Profile {
@@ -116,47 +146,88 @@ mod tests {
 
     #[test]
     fn a_detent_only_correction_fits_at_the_current_the_closed_form_gives() {
-        // Δ = A/(Km·I) ≤ limit ⇔ I ≥ A/(Km·limit): 0.15 N·m, Km 0.3 → 2.567 A.
+        // Δ = A/(Km·I) ≤ limit ⇔ I ≥ A/(Km·limit): 0.15 N·m, Km 0.3 → 2.567 A; the firmware's
+        // quantised magnitudes move it by well under a step.
         let p = detent_only(0.15);
         let exact = 0.15 / (0.3 * limit_rad());
-        let got = lowest_fitting_current_a(&p, 1.0, 3.0).unwrap().unwrap();
-        assert!(got >= exact && got <= exact * 3f64.powf(1.0 / f64::from(STEPS)) * 1.0001, "{got} vs {exact}");
-        assert!(wanted_peak_rad(&Correction::from_profile(&p, Some(got)).unwrap()) <= limit_rad());
+        let step = 3f64.powf(1.0 / f64::from(STEPS));
+        let got = lowest_fitting_current_a(&p, 1.0, 3.0, FW).unwrap().unwrap();
+        assert!(got >= exact / step && got <= exact * step * step, "{got} vs {exact}");
+        assert!(fits_whole(&p, got, FW).unwrap());
+        assert!(!fits_whole(&p, got / step, FW).unwrap(), "{got} is not the lowest grid point");
     }
 
     #[test]
     fn no_current_in_range_is_none_and_a_fitting_start_is_the_start() {
         let p = detent_only(0.15);
-        assert_eq!(lowest_fitting_current_a(&p, 1.0, 2.0).unwrap(), None);
-        assert_eq!(lowest_fitting_current_a(&p, 2.8, 3.0).unwrap(), Some(2.8));
+        assert_eq!(lowest_fitting_current_a(&p, 1.0, 2.0, FW).unwrap(), None);
+        assert_eq!(lowest_fitting_current_a(&p, 2.8, 3.0, FW).unwrap(), Some(2.8));
+    }
+
+    /// patent-motor with a flux third of `h3` (ratio of the fundamental): its current part
+    /// asks the table for `3·h3` rad at any current.
+    fn with_third(h3: f64, current_limit_a: f64) -> Profile {
+        Profile::preset("patent-motor")
+            .unwrap()
+            .edited("third", |d| {
+                d.motor.flux.harmonics = vec![FluxHarmonic { order: 3, ratio: h3, phase_rad: 0.4 }];
+                d.drive.current_limit_a = current_limit_a;
+            })
+            .unwrap()
+    }
+
+    #[test]
+    fn a_flux_profile_is_scanned_up_to_its_current_limit_without_passing_it() {
+        // A range whose geometric grid lands an ulp above its end unless the end is taken as is.
+        let (from, up_to) = (2.488, 3.041);
+        assert!(from * (up_to / from) > up_to, "pick a pair that overshoots");
+        let p = with_third(0.1, up_to);
+        assert_eq!(lowest_fitting_current_a(&p, from, up_to, FW).unwrap(), None);
+        let h = headroom(&p, &Correction::from_profile(&p, Some(from)).unwrap(), FW).unwrap();
+        assert_eq!((h.fits_at, h.searched_up_to.peak_a()), (None, up_to));
+        assert!(h.to_string().starts_with("no run current, set to the mA, up to"), "{h}");
     }
 
     #[test]
     fn the_headroom_searches_from_the_exported_current_to_the_current_limit() {
         // patent-motor's current limit is 3 A.
         let p = detent_only(0.15);
-        let h = headroom(&p, &Correction::from_profile(&p, Some(1.9)).unwrap()).unwrap();
+        let h = headroom(&p, &Correction::from_profile(&p, Some(1.9)).unwrap(), FW).unwrap();
         assert_eq!(h.searched_up_to.peak_a(), 3.0);
         let at = h.fits_at.unwrap();
-        assert!((2.56..2.6).contains(&at.peak_a()), "{at}");
+        assert!((2.55..2.6).contains(&at.peak_a()), "{at}");
         // Both displayed values fit: the peak and the RMS, as printed to the mA.
         let shown = |x: f64| (1e3 * x).round() / 1e3;
         for peak in [shown(at.peak_a()), shown(at.rms_a()) * std::f64::consts::SQRT_2] {
-            let w = wanted_peak_rad(&Correction::from_profile(&p, Some(peak)).unwrap());
-            assert!(w <= limit_rad(), "{peak} A peak: {w} rad");
+            assert!(fits_whole(&p, peak, FW).unwrap(), "{peak} A peak");
         }
-        assert!(h.to_string().contains("fits the table from a run current of"), "{h}");
+        assert!(h.to_string().contains("fits the table at a run current of"), "{h}");
         let too_big = detent_only(0.3);
-        let h = headroom(&too_big, &Correction::from_profile(&too_big, Some(1.9)).unwrap()).unwrap();
+        let h = headroom(&too_big, &Correction::from_profile(&too_big, Some(1.9)).unwrap(), FW).unwrap();
         assert_eq!(h.fits_at, None);
-        assert!(h.to_string().starts_with("no run current up to"), "{h}");
+        assert!(h.to_string().starts_with("no run current, set to the mA, up to"), "{h}");
+    }
+
+    #[test]
+    fn a_current_that_fits_only_at_the_limit_is_not_advised_above_it() {
+        // The limit set where the correction just fits (2.557 A): the scan finds the limit
+        // itself, and the first whole mA of RMS above it displays a peak above the limit,
+        // which the advice must not offer.
+        let lowest = lowest_fitting_current_a(&detent_only(0.15), 1.9, 3.0, FW).unwrap().unwrap();
+        let limit = (1e3 * lowest).ceil() / 1e3;
+        let p = detent_only(0.15).edited("tight", |d| d.drive.current_limit_a = limit).unwrap();
+        assert_eq!(lowest_fitting_current_a(&p, 1.9, limit, FW).unwrap(), Some(limit));
+        let next_peak = (1e3 * limit / std::f64::consts::SQRT_2).ceil() * std::f64::consts::SQRT_2 / 1e3;
+        assert!((1e3 * next_peak).round() / 1e3 > limit, "{next_peak} vs {limit}: pick another limit");
+        let h = headroom(&p, &Correction::from_profile(&p, Some(1.9)).unwrap(), FW).unwrap();
+        assert_eq!(h.fits_at, None);
     }
 
     #[test]
     fn a_bad_range_is_refused() {
         let p = detent_only(0.15);
         for (a, b) in [(0.0, 1.0), (2.0, 1.0), (f64::NAN, 1.0), (1.0, f64::INFINITY)] {
-            assert!(lowest_fitting_current_a(&p, a, b).is_err(), "{a}..{b}");
+            assert!(lowest_fitting_current_a(&p, a, b, FW).is_err(), "{a}..{b}");
         }
     }
 }
