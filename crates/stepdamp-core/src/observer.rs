@@ -147,6 +147,13 @@ const SLOW_HZ: f32 = 5.0;
 /// parametric resonance worse at one speed of five; at 1 and 2 kHz it removed it at all five.
 const LEAD_RATE_HZ: f32 = 1000.0;
 
+/// Bound of [`ObserverState::delta_lead_rad`], electrical rad. A swing of `A` rad at `f`
+/// leads the 500 Hz filter by about `A·f/500 Hz`: 0.1 rad is a 0.25 rad swing at the
+/// family's fastest resonance (200 Hz), beyond which the motor is close to losing steps
+/// and `ε` is not what fails. A jump of the estimate (a restart, a slip) is not a delay,
+/// and must not move `ε`'s evaluation point by radians.
+const LEAD_LIMIT_RAD: f32 = 0.1;
+
 /// Back-EMF, in units of the floor, above which `K̂m` is tracked.
 const KM_MIN_EMF_FLOORS: f32 = 20.0;
 
@@ -187,13 +194,16 @@ pub struct ObserverState {
     delta_prev_rad: f32,
     /// The estimate's change per period through the rate filter, electrical rad.
     delta_rate_rad: f32,
+    /// Whether the last period ran (its `δ̂` is a history for the rate; at standstill it is
+    /// forced to 0, which is not).
+    lead_running: bool,
     /// How far the load angle is ahead of the estimate `δ̂` that the fast filter delays,
     /// electrical rad: the filtered rate times the filter's lag in periods. The estimated
     /// law evaluates `ε` (above) at the rotor angle this much further behind; evaluated at
     /// the delayed angle, `ε`'s error made the parametric resonance grow on one motor of the
     /// real-motor family (docs/design.md#the-back-emfs-angle-where-the-rotor-is). Not applied
-    /// to the compensation's own angle, where it made that resonance worse at every speed
-    /// tried.
+    /// to the compensation's own angle, where it made that resonance worse at each of the four
+    /// speeds (of the five) it was tried at. 0 at standstill; within ±0.1 rad (`LEAD_LIMIT_RAD`).
     pub delta_lead_rad: f32,
 }
 
@@ -304,7 +314,7 @@ impl LoadAngleObserver {
         } else {
             self.estimate_angle(st, direction, input.speed_rad_s);
         }
-        self.track_lead(st);
+        self.track_lead(st, direction != 0.0);
         if !st.is_sound() {
             self.restart(st);
         }
@@ -415,12 +425,29 @@ impl LoadAngleObserver {
         }
     }
 
-    /// The estimate's lead ([`ObserverState::delta_lead_rad`]) from its filtered change.
+    /// The estimate's lead ([`ObserverState::delta_lead_rad`]) from its filtered change,
+    /// within ±[`LEAD_LIMIT_RAD`]. At standstill (`δ̂` forced to 0) and in the first period
+    /// running it is 0 and the history restarts, so neither a stop nor the next start is read
+    /// as a swing; a change across ±π (an estimate that wrapped) is taken the short way round.
     #[inline(always)]
-    fn track_lead(&self, st: &mut ObserverState) {
-        self.rate_filter.update(&mut st.delta_rate_rad, st.delta_rad - st.delta_prev_rad);
+    fn track_lead(&self, st: &mut ObserverState, running: bool) {
+        if !(running && st.lead_running) {
+            // A stop, or the first period running: no history, so no rate yet.
+            st.lead_running = running;
+            st.delta_prev_rad = st.delta_rad;
+            st.delta_rate_rad = 0.0;
+            st.delta_lead_rad = 0.0;
+            return;
+        }
+        let mut change = st.delta_rad - st.delta_prev_rad;
+        if change > core::f32::consts::PI {
+            change -= core::f32::consts::TAU;
+        } else if change < -core::f32::consts::PI {
+            change += core::f32::consts::TAU;
+        }
+        self.rate_filter.update(&mut st.delta_rate_rad, change);
         st.delta_prev_rad = st.delta_rad;
-        st.delta_lead_rad = self.lag_periods * st.delta_rate_rad;
+        st.delta_lead_rad = crate::bound(self.lag_periods * st.delta_rate_rad, -LEAD_LIMIT_RAD, LEAD_LIMIT_RAD);
     }
 
     /// Restarts the filters and the histories (a broken sample or voltage history), but
@@ -574,13 +601,48 @@ mod tests {
     #[test]
     fn the_lead_takes_the_fast_filters_delay_off_a_swinging_load_angle() {
         // At 110 Hz the 500 Hz filter lags 0.22 rad: 0.0075 rad rms of a 0.05 rad swing. The
-        // lead must take most of it off, at the patent motor's resonance and at the family's
-        // fastest (200 Hz). Measured: 23 % and 15 % of it remain.
+        // lead must take most of it off, at the parametric resonance of motor 0 of the
+        // independent family (110 Hz) and at the family's fastest (200 Hz). Measured: 23 % and
+        // 15 % of it remain.
         for f in [110.0, 200.0] {
             let (plain, led) = swing_errors(f);
             assert!(plain > 0.006, "{f} Hz: the filter's delay is only {plain} rad: the test proves nothing");
             assert!(led < 0.3 * plain, "{f} Hz: rms error {led} rad with the lead, {plain} without");
         }
+    }
+
+    #[test]
+    fn a_stop_and_a_restart_are_not_read_as_a_swing() {
+        let obs = observer(R, KM);
+        let mut st = ObserverState::default();
+        run(&obs, &mut st, 10.0, 0.3, R, 20_000);
+        assert!(st.delta_lead_rad.abs() < 1e-3, "steady: {}", st.delta_lead_rad);
+        // δ̂ falls from 0.3 to 0 at the stop: without the reset that was a lead of −0.5 rad.
+        run(&obs, &mut st, 0.0, 0.0, R, 3);
+        assert_eq!((st.delta_rad, st.delta_lead_rad), (0.0, 0.0));
+        // The filters still hold the running back-EMF: δ̂ is back near 0.3 in one period.
+        run(&obs, &mut st, 10.0, 0.3, R, 1);
+        assert!(st.delta_rad > 0.2, "{}", st.delta_rad);
+        assert_eq!(st.delta_lead_rad, 0.0, "the first period running has no rate");
+        run(&obs, &mut st, 10.0, 0.3, R, 200);
+        assert!(st.delta_lead_rad.abs() < 0.01, "{}", st.delta_lead_rad);
+    }
+
+    #[test]
+    fn the_lead_takes_a_wrap_the_short_way_and_stays_bounded() {
+        let obs = observer(R, KM);
+        let mut st = ObserverState { lead_running: true, delta_prev_rad: 3.1, delta_rad: -3.1, ..Default::default() };
+        obs.track_lead(&mut st, true);
+        // +0.083 rad the short way round, not −6.2 rad.
+        assert!(st.delta_rate_rad > 0.0 && st.delta_rate_rad < 0.083, "{}", st.delta_rate_rad);
+        // A jump of a radian (a restart, a slip) leads by at most the bound.
+        let mut st = ObserverState { lead_running: true, delta_prev_rad: 0.0, delta_rad: 1.0, ..Default::default() };
+        obs.track_lead(&mut st, true);
+        assert_eq!(st.delta_lead_rad, LEAD_LIMIT_RAD);
+        st.delta_rad = -1.0;
+        obs.track_lead(&mut st, true);
+        obs.track_lead(&mut st, true);
+        assert_eq!(st.delta_lead_rad, -LEAD_LIMIT_RAD);
     }
 
     #[test]
