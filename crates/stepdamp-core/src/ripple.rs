@@ -212,8 +212,10 @@ pub fn divisor(v: &RippleValue, sin_delta: f32, cos_delta: f32) -> f32 {
 /// the rotor angle `lag` rad (electrical) behind the one `v` was evaluated at, electrical
 /// rad: `ε ≈ −cd/(1 − cq)` (the back-EMF per rad/s is the torque per ampere,
 /// docs/design.md#real-motors-flux-harmonics), moved along its slope
-/// `ε' = −(cd' − ε·cq')/(1 − cq)` by `−ε'·lag` (first order: `lag` is a few mrad). 0 for a
-/// pure sine (`cd`, `cq` and their slopes 0).
+/// `ε' = −(cd' − ε·cq')/(1 − cq)` by `−ε'·lag` (first order: `lag` is a few mrad, at most
+/// 0.1 rad from the observer). 0 for a pure sine (`cd`, `cq` and their slopes 0). `v` must
+/// come from [`RippleModel::eval_with_emf_slopes`]: [`RippleModel::eval`] leaves the slopes 0,
+/// and the lag would be ignored. `1 − cq` is bounded below by [`MIN_DIVISOR`].
 #[inline(always)]
 pub fn back_emf_angle_rad(v: &RippleValue, lag: f32) -> f32 {
     let den = crate::at_least(1.0 - v.per_amp_q, MIN_DIVISOR);

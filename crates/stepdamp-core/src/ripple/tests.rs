@@ -342,3 +342,13 @@ fn the_back_emf_angle_of_a_pure_sine_is_zero_at_any_lag() {
     assert_eq!(back_emf_angle_rad(&v, 0.0), 0.0);
     assert_eq!(back_emf_angle_rad(&v, 0.3), 0.0);
 }
+
+#[test]
+fn the_back_emf_angle_stays_finite_where_the_torque_per_ampere_collapses() {
+    // `1 − cq` at or below 0 (a q current that makes no torque, or NaN): the divisor is
+    // bounded at MIN_DIVISOR, so ε is `−cd/MIN_DIVISOR`, not ±∞ or a sign flip.
+    for cq in [1.0f32, 1.7, f32::NAN] {
+        let v = RippleValue { per_amp_d: 0.05, per_amp_q: cq, ..RippleValue::default() };
+        assert_eq!(back_emf_angle_rad(&v, 0.0), -0.05 / MIN_DIVISOR, "cq {cq}");
+    }
+}
