@@ -73,24 +73,35 @@ pub struct Headroom {
     /// A run current at which it is, as a user would type it (a whole mA of RMS whose peak
     /// and RMS, as displayed, both fit), if one up to [`Headroom::searched_up_to`] does.
     pub fits_at: Option<RunCurrent>,
-    /// The highest run current searched: the profile's current limit.
+    /// The lowest peak current (A) of the scan's grid at which it fits, if any
+    /// ([`lowest_fitting_current_a`]); `fits_at` is at or above it.
+    pub fits_from_a: Option<f64>,
+    /// The highest run current searched: the profile's current limit, or the exported
+    /// current where that is higher.
     pub searched_up_to: RunCurrent,
 }
 
 impl std::fmt::Display for Headroom {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self.fits_at {
-            Some(i) => writeln!(
+        let up_to = self.searched_up_to.peak_a();
+        match (self.fits_at, self.fits_from_a) {
+            (Some(i), _) => writeln!(
                 f,
-                "the whole correction fits the table at a run current of {i} (the lowest found up to the profile's \
-                 current limit, {:.3} A peak); whether the motor and driver may run that hot is yours to check",
-                self.searched_up_to.peak_a()
+                "the whole correction fits the table at a run current of {i} (the lowest found up to {up_to:.3} A \
+                 peak, the profile's current limit or the exported current above it); whether the motor and driver \
+                 may run that hot is yours to check"
             ),
-            None => writeln!(
+            (None, Some(from)) => writeln!(
                 f,
-                "no run current, set to the mA, up to the profile's current limit ({:.3} A peak) fits the whole correction \
-                 (with flux harmonics, the part of the ripple that grows with the current does not shrink with it)",
-                self.searched_up_to.peak_a()
+                "the whole correction fits the table from about {from:.4} A peak, but no whole mA of RMS from there \
+                 to {up_to:.3} A peak (the profile's current limit or the exported current above it) was found whose \
+                 peak and RMS, as printed, both fit"
+            ),
+            (None, None) => writeln!(
+                f,
+                "no run current up to {up_to:.3} A peak (the profile's current limit or the exported current above \
+                 it) fits the whole correction (with flux harmonics, the part of the ripple that grows with the \
+                 current does not shrink with it)"
             ),
         }
     }
@@ -100,31 +111,37 @@ impl std::fmt::Display for Headroom {
 /// values fit too: a few are enough where the wanted shift falls with the current.
 const COPYABLE_TRIES: u32 = 8;
 
+/// `x` as `{:.3}` prints it (what a user copies), read back.
+fn shown(x: f64) -> Result<f64, ExportError> {
+    format!("{x:.3}").parse().map_err(|e| ExportError::Invalid(format!("{x:.3} A does not read back: {e}")))
+}
+
 /// [`lowest_fitting_current_a`] from the run current `c` was exported for up to `p`'s current
 /// limit (`drive.current_limit_a`; at least `c`'s), then the first whole mA of RMS at or
-/// above it, within the limit, at which both numbers a user may copy from [`RunCurrent`]'s
-/// three-decimal display (the peak for `--current`, the RMS for `--current-rms`) are written
-/// whole too: a flux profile's wanted shift need not fall monotonically with the current, so
-/// each is checked, not assumed.
+/// above it (of [`COPYABLE_TRIES`]), within the limit, at which both numbers a user may copy
+/// from [`RunCurrent`]'s three-decimal display (the peak for `--current`, the RMS for
+/// `--current-rms`) are written whole too: a flux profile's wanted shift need not fall
+/// monotonically with the current, so each is checked, not assumed. An error here is
+/// advice lost, not an export failed: the CLI prints it as a warning.
 pub fn headroom(p: &Profile, c: &Correction, fw: Firmware) -> Result<Headroom, ExportError> {
     let up_to = p.drive.current_limit_a.max(c.holding_current_a);
     let searched_up_to = RunCurrent::from_peak(up_to)?;
-    let Some(lowest) = lowest_fitting_current_a(p, c.holding_current_a, up_to, fw)? else {
-        return Ok(Headroom { fits_at: None, searched_up_to });
-    };
-    let shown = |x: f64| (1e3 * x).round() / 1e3;
+    let fits_from_a = lowest_fitting_current_a(p, c.holding_current_a, up_to, fw)?;
+    let mut h = Headroom { fits_at: None, fits_from_a, searched_up_to };
+    let Some(lowest) = fits_from_a else { return Ok(h) };
     let first_rms_ma = (1e3 * lowest / std::f64::consts::SQRT_2).ceil();
     for rms_ma in (0..COPYABLE_TRIES).map(|k| first_rms_ma + f64::from(k)) {
         let at = RunCurrent::from_rms(rms_ma / 1e3)?;
-        let typed = [shown(at.peak_a()), shown(at.rms_a()) * std::f64::consts::SQRT_2];
+        let typed = [shown(at.peak_a())?, shown(at.rms_a())? * std::f64::consts::SQRT_2];
         if typed.iter().any(|&t| t > up_to) {
             break;
         }
         if typed.iter().try_fold(true, |ok, &t| Ok::<_, ExportError>(ok && fits_whole(p, t, fw)?))? {
-            return Ok(Headroom { fits_at: Some(at), searched_up_to });
+            h.fits_at = Some(at);
+            break;
         }
     }
-    Ok(Headroom { fits_at: None, searched_up_to })
+    Ok(h)
 }
 
 #[cfg(test)]
@@ -184,8 +201,8 @@ mod tests {
         let p = with_third(0.1, up_to);
         assert_eq!(lowest_fitting_current_a(&p, from, up_to, FW).unwrap(), None);
         let h = headroom(&p, &Correction::from_profile(&p, Some(from)).unwrap(), FW).unwrap();
-        assert_eq!((h.fits_at, h.searched_up_to.peak_a()), (None, up_to));
-        assert!(h.to_string().starts_with("no run current, set to the mA, up to"), "{h}");
+        assert_eq!((h.fits_at, h.fits_from_a, h.searched_up_to.peak_a()), (None, None, up_to));
+        assert!(h.to_string().starts_with("no run current up to 3.041 A peak"), "{h}");
     }
 
     #[test]
@@ -197,15 +214,14 @@ mod tests {
         let at = h.fits_at.unwrap();
         assert!((2.55..2.6).contains(&at.peak_a()), "{at}");
         // Both displayed values fit: the peak and the RMS, as printed to the mA.
-        let shown = |x: f64| (1e3 * x).round() / 1e3;
-        for peak in [shown(at.peak_a()), shown(at.rms_a()) * std::f64::consts::SQRT_2] {
+        for peak in [shown(at.peak_a()).unwrap(), shown(at.rms_a()).unwrap() * std::f64::consts::SQRT_2] {
             assert!(fits_whole(&p, peak, FW).unwrap(), "{peak} A peak");
         }
         assert!(h.to_string().contains("fits the table at a run current of"), "{h}");
         let too_big = detent_only(0.3);
         let h = headroom(&too_big, &Correction::from_profile(&too_big, Some(1.9)).unwrap(), FW).unwrap();
-        assert_eq!(h.fits_at, None);
-        assert!(h.to_string().starts_with("no run current, set to the mA, up to"), "{h}");
+        assert_eq!((h.fits_at, h.fits_from_a), (None, None));
+        assert!(h.to_string().starts_with("no run current up to 3.000 A peak"), "{h}");
     }
 
     #[test]
@@ -220,7 +236,12 @@ mod tests {
         let next_peak = (1e3 * limit / std::f64::consts::SQRT_2).ceil() * std::f64::consts::SQRT_2 / 1e3;
         assert!((1e3 * next_peak).round() / 1e3 > limit, "{next_peak} vs {limit}: pick another limit");
         let h = headroom(&p, &Correction::from_profile(&p, Some(1.9)).unwrap(), FW).unwrap();
-        assert_eq!(h.fits_at, None);
+        assert_eq!((h.fits_at, h.fits_from_a), (None, Some(limit)));
+        // It says that it fits there, not that nothing does.
+        assert!(
+            h.to_string().starts_with(&format!("the whole correction fits the table from about {limit:.4} A peak")),
+            "{h}"
+        );
     }
 
     #[test]
