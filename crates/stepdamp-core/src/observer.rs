@@ -150,7 +150,7 @@ const LEAD_RATE_HZ: f32 = 1000.0;
 /// Bound of [`ObserverState::delta_lead_rad`], electrical rad. A swing of `A` rad at `f`
 /// leads the 500 Hz filter by about `A·f/500 Hz`: 0.1 rad is a 0.25 rad swing at the
 /// family's fastest resonance (200 Hz), beyond which the motor is close to losing steps
-/// and `ε` is not what fails. A jump of the estimate (a restart, a slip) is not a delay,
+/// and `ε` is not what fails. A jump of the estimate (a slip) is not a delay,
 /// and must not move `ε`'s evaluation point by radians.
 const LEAD_LIMIT_RAD: f32 = 0.1;
 
@@ -194,9 +194,10 @@ pub struct ObserverState {
     delta_prev_rad: f32,
     /// The estimate's change per period through the rate filter, electrical rad.
     delta_rate_rad: f32,
-    /// Whether the last period ran (its `δ̂` is a history for the rate; at standstill it is
-    /// forced to 0, which is not).
-    lead_running: bool,
+    /// The direction (±1, 0 at standstill) of the last period: `δ̂` is a history for the rate
+    /// only in the same direction (at standstill it is forced to 0; a reversal turns the
+    /// back-EMF it is read from).
+    lead_direction: f32,
     /// How far the load angle is ahead of the estimate `δ̂` that the fast filter delays,
     /// electrical rad: the filtered rate times the filter's lag in periods. The estimated
     /// law evaluates `ε` (above) at the rotor angle this much further behind; evaluated at
@@ -222,7 +223,7 @@ impl ObserverState {
             && self.r_hat_ohm.is_finite()
             && self.km_hat.is_finite()
             && self.km_hat > 0.0
-            && self.delta_lead_rad.is_finite()
+            && self.delta_rate_rad.is_finite()
     }
 }
 
@@ -314,7 +315,7 @@ impl LoadAngleObserver {
         } else {
             self.estimate_angle(st, direction, input.speed_rad_s);
         }
-        self.track_lead(st, direction != 0.0);
+        self.track_lead(st, direction);
         if !st.is_sound() {
             self.restart(st);
         }
@@ -427,13 +428,14 @@ impl LoadAngleObserver {
 
     /// The estimate's lead ([`ObserverState::delta_lead_rad`]) from its filtered change,
     /// within ±[`LEAD_LIMIT_RAD`]. At standstill (`δ̂` forced to 0) and in the first period
-    /// running it is 0 and the history restarts, so neither a stop nor the next start is read
-    /// as a swing; a change across ±π (an estimate that wrapped) is taken the short way round.
+    /// running or after a reversal (`direction`, ±1 or 0) it is 0 and the history restarts,
+    /// so neither a stop, a start nor a reversal is read as a swing; a change across ±π (an
+    /// estimate that wrapped) is taken the short way round.
     #[inline(always)]
-    fn track_lead(&self, st: &mut ObserverState, running: bool) {
-        if !(running && st.lead_running) {
-            // A stop, or the first period running: no history, so no rate yet.
-            st.lead_running = running;
+    fn track_lead(&self, st: &mut ObserverState, direction: f32) {
+        if direction == 0.0 || direction != st.lead_direction {
+            // A stop, a start or a reversal: no history, so no rate yet.
+            st.lead_direction = direction;
             st.delta_prev_rad = st.delta_rad;
             st.delta_rate_rad = 0.0;
             st.delta_lead_rad = 0.0;
@@ -629,19 +631,33 @@ mod tests {
     }
 
     #[test]
+    fn a_reversal_without_a_standstill_period_is_not_read_as_a_swing() {
+        let obs = observer(R, KM);
+        let mut st = ObserverState { lead_direction: 1.0, delta_prev_rad: 0.3, delta_rad: 0.3, ..Default::default() };
+        obs.track_lead(&mut st, 1.0);
+        assert_eq!(st.delta_lead_rad, 0.0);
+        // The speed's sign flips between two periods: δ̂ jumps, and that is no delay.
+        st.delta_rad = -0.3;
+        obs.track_lead(&mut st, -1.0);
+        assert_eq!((st.delta_lead_rad, st.delta_rate_rad), (0.0, 0.0));
+        obs.track_lead(&mut st, -1.0);
+        assert_eq!(st.delta_lead_rad, 0.0, "steady in the new direction");
+    }
+
+    #[test]
     fn the_lead_takes_a_wrap_the_short_way_and_stays_bounded() {
         let obs = observer(R, KM);
-        let mut st = ObserverState { lead_running: true, delta_prev_rad: 3.1, delta_rad: -3.1, ..Default::default() };
-        obs.track_lead(&mut st, true);
+        let mut st = ObserverState { lead_direction: 1.0, delta_prev_rad: 3.1, delta_rad: -3.1, ..Default::default() };
+        obs.track_lead(&mut st, 1.0);
         // +0.083 rad the short way round, not −6.2 rad.
         assert!(st.delta_rate_rad > 0.0 && st.delta_rate_rad < 0.083, "{}", st.delta_rate_rad);
-        // A jump of a radian (a restart, a slip) leads by at most the bound.
-        let mut st = ObserverState { lead_running: true, delta_prev_rad: 0.0, delta_rad: 1.0, ..Default::default() };
-        obs.track_lead(&mut st, true);
+        // A jump of a radian (a slip) leads by at most the bound.
+        let mut st = ObserverState { lead_direction: 1.0, delta_prev_rad: 0.0, delta_rad: 1.0, ..Default::default() };
+        obs.track_lead(&mut st, 1.0);
         assert_eq!(st.delta_lead_rad, LEAD_LIMIT_RAD);
         st.delta_rad = -1.0;
-        obs.track_lead(&mut st, true);
-        obs.track_lead(&mut st, true);
+        obs.track_lead(&mut st, 1.0);
+        obs.track_lead(&mut st, 1.0);
         assert_eq!(st.delta_lead_rad, -LEAD_LIMIT_RAD);
     }
 

@@ -350,5 +350,11 @@ fn the_back_emf_angle_stays_finite_where_the_torque_per_ampere_collapses() {
     for cq in [1.0f32, 1.7, f32::NAN] {
         let v = RippleValue { per_amp_d: 0.05, per_amp_q: cq, ..RippleValue::default() };
         assert_eq!(back_emf_angle_rad(&v, 0.0), -0.05 / MIN_DIVISOR, "cq {cq}");
+        // The slope's divisor is the same bounded one: ε' = −(cd' − ε·cq')/MIN_DIVISOR.
+        let v = RippleValue { per_amp_d_slope: 0.2, per_amp_q_slope: 0.4, ..v };
+        let eps = -0.05 / MIN_DIVISOR;
+        let slope = -(0.2 - eps * 0.4) / MIN_DIVISOR;
+        let got = back_emf_angle_rad(&v, 0.01);
+        assert!((got - (eps - slope * 0.01)).abs() < 1e-6, "cq {cq}: {got}");
     }
 }
