@@ -108,6 +108,50 @@ fn refine_writes_the_m971_table_that_cancels_what_the_captures_measured() {
 }
 
 #[test]
+fn a_table_too_large_for_the_int8_shifts_is_refused_with_the_current_where_it_would_fit() {
+    // Harmonic 4 forward: Y0 = 6 m/s², C = 20 m/s² per rad: the cancelling shift is 0.3 rad,
+    // past the table's 0.195 rad at 0.55 A RMS (0.778 A peak). A detent's shift falls as 1/I:
+    // it fits from 0.778·0.3/0.195 ≈ 1.2 A peak, 0.85 A RMS.
+    // The trial (0.004, 0.6) adds C·U = 20·e^{-0.5i}·4·0.004·e^{0.6i} to Y0.
+    let (y, u) = ((6.0f64, 1.2f64), (20.0 * 4.0 * 0.004, 0.1f64));
+    let sum = (y.0 * y.1.cos() + u.0 * u.1.cos(), y.0 * y.1.sin() + u.0 * u.1.sin());
+    let with_trial = (sum.0.hypot(sum.1), sum.1.atan2(sum.0));
+    let log = capture_text(m973(-8.0, 0.0, 0.0), y) + &capture_text(m973(-8.0, 0.004, 0.6), with_trial);
+    let dir = tempfile::tempdir().unwrap();
+    let session = dir.path().join("serial.log");
+    std::fs::write(&session, log).unwrap();
+    let out = dir.path().join("x.gcode");
+    let o = stepdamp(&[
+        "accel",
+        "refine",
+        "--log",
+        session.to_str().unwrap(),
+        "--motor",
+        "patent-motor",
+        "--in-use",
+        "none",
+        "--axis",
+        "X",
+        "--current-rms",
+        "0.55",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.lines().count() == 1, "{err}");
+    assert!(
+        err.contains("past Prusa's int8 shifts") && err.contains("too large for the table at this run current"),
+        "{err}"
+    );
+    assert!(!out.exists(), "nothing written");
+    // The advice: M906 X<mA RMS>, within 2 % of the closed form (0.3 rad as 4096ths, rounded).
+    let ma: f64 = err.split("`M906 X").nth(1).and_then(|t| t.split('`').next()).unwrap().parse().unwrap();
+    let want_peak = 0.55 * std::f64::consts::SQRT_2 * (0.3 * 4096.0 / TAU) / 127.0;
+    let want_ma = 1e3 * want_peak / std::f64::consts::SQRT_2;
+    assert!((ma - want_ma).abs() < 0.02 * want_ma, "{ma} mA against {want_ma:.0}: {err}");
+}
+
+#[test]
 fn refine_refuses_what_it_cannot_use_naming_it() {
     let dir = tempfile::tempdir().unwrap();
     let session = dir.path().join("serial.log");

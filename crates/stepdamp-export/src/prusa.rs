@@ -18,6 +18,7 @@
 pub mod fixed;
 pub mod gcode;
 pub mod headroom;
+pub mod measured;
 pub mod read;
 
 pub use read::{parse_bytes, parse_m971, parse_m972, parse_m973, parse_text};

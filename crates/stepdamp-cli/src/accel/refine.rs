@@ -7,6 +7,8 @@ use crate::export::CurrentArgs;
 use anyhow::{Result, bail};
 use std::path::PathBuf;
 use stepdamp_accel::refine::{InUse, RefineOptions, Refined, TABLE_ITEMS, Timing, refine};
+use stepdamp_export::RunCurrent;
+use stepdamp_export::prusa::measured::{MeasuredTable, TableVsCurrent};
 use stepdamp_export::prusa::{self, Firmware, Fitted, PrusaCorrection, Spectrum, gcode};
 
 /// How the time of each capture's first sample is found.
@@ -96,19 +98,50 @@ pub(super) fn run_refine(a: RefineArgs) -> Result<()> {
         s.mag[n] = gcode::quantize(r.item.0, gcode::MAG_DECIMALS);
         s.pha[n] = gcode::quantize(r.item.1, gcode::PHA_DECIMALS);
     }
-    let text = write_table(&new, letter, &motor.name, run)?;
+    let text = write_table(&new, letter, &motor.name, run, motor.drive.current_limit_a)?;
     write_atomic(&a.out, text.as_bytes())?;
     outln!("not simulated: a measured correction, valid at {run}; record the baselines again with it to confirm");
     outln!("wrote {} (M970 {letter}0, M971 {letter} F|B x{TABLE_ITEMS}, M970 {letter}1)", a.out.display());
     Ok(())
 }
 
-/// The G-code of `c`, refused when its table would not fit the firmware's int8 shifts.
-fn write_table(c: &PrusaCorrection, axis: char, name: &str, run: stepdamp_export::RunCurrent) -> Result<String> {
-    let peak = [c.forward, c.backward].iter().map(|s| s.peak_shift(c.firmware)).try_fold(0, |m, p| p.map(|p| p.max(m)));
+/// The G-code of `c`, refused when its table would not fit the firmware's int8 shifts, with
+/// the run current at which it would (`stepdamp_export::prusa::measured`, from this one
+/// table: a lower bound where the ripple grows with the current) up to `limit_a`.
+fn write_table(
+    c: &PrusaCorrection,
+    axis: char,
+    name: &str,
+    run: stepdamp_export::RunCurrent,
+    limit_a: f64,
+) -> Result<String> {
+    let peaks = [c.forward, c.backward].map(|s| s.peak_shift(c.firmware));
+    let peak = peaks.iter().try_fold(0, |m, p| p.map(|p| p.max(m)));
     let Some(peak) = peak.filter(|&p| p <= prusa::SHIFT_LIMIT) else {
+        let needs = match peak {
+            Some(p) => format!("needs a shift of {p} of 4096"),
+            None => "overflows the firmware's 32-bit sum".to_string(),
+        };
+        let measured = MeasuredTable { peak_a: run.peak_a(), table: *c };
+        let up_to = limit_a.max(run.peak_a());
+        let advice = match TableVsCurrent::fit(&[measured])?.lowest_fitting_current_a(up_to)? {
+            Some(at) => {
+                let at = RunCurrent::from_rms((1e3 * at / std::f64::consts::SQRT_2).ceil() / 1e3)?;
+                format!(
+                    "if the ripple did not grow with the current, the table would fit from {at} (`M906 {axis}{:.0}`, \
+                     in mA RMS); where it grows, higher: record the plan again at that current (whether the motor \
+                     may run that hot is yours to check) and refine from those captures",
+                    1e3 * at.rms_a()
+                )
+            }
+            None => format!(
+                "no run current up to {up_to:.3} A peak (the profile's drive.current_limit_a) makes it fit, even \
+                 if the ripple did not grow with the current"
+            ),
+        };
         bail!(
-            "the refined table does not fit Prusa's int8 shifts (±{} of 4096): a smaller trial, or fewer harmonics per step",
+            "the refined table {needs} at {run}, past Prusa's int8 shifts (±{} of 4096, ±0.195 rad): the ripple is \
+             too large for the table at this run current; {advice} (docs/accelerometer.md#when-the-table-is-too-small)",
             prusa::SHIFT_LIMIT
         );
     };

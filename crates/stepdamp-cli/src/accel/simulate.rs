@@ -74,7 +74,7 @@ pub(super) fn run_simulate(a: SimulateArgs) -> Result<()> {
     text.push_str(&p.print(&trace));
     write_atomic(&a.out, text.as_bytes())?;
     outln!(
-        "wrote {}: {g} on {} at {current} A peak, {} samples at {:.2} Hz",
+        "wrote {}: {g} on {} at {current:.3} A peak, {} samples at {:.2} Hz",
         stepdamp_export::escape::line(&a.out.display().to_string()),
         stepdamp_export::escape::line(&p.profile.name),
         trace.samples_m_s2.len(),

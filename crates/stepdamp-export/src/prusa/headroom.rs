@@ -24,7 +24,7 @@ pub fn wanted_peak_rad(c: &Correction) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// Steps of [`lowest_fitting_current_a`]'s scan: the currents are `from·(up_to/from)^(n/STEPS)`,
+/// Steps of [`scan_currents`]' grid: the currents are `from·(up_to/from)^(n/STEPS)`,
 /// so the answer is at most `(up_to/from)^(1/STEPS)` above the exact one (0.35 % for a 2:1
 /// range).
 const STEPS: u32 = 200;
@@ -36,16 +36,27 @@ fn fits_whole(p: &Profile, peak_a: f64, fw: Firmware) -> Result<bool, ExportErro
 }
 
 /// The lowest run current (peak, A) in `[from_a, up_to_a]` at which `p`'s correction
-/// ([`Correction::from_profile`] at that current) is written whole for `fw`, found on a
-/// geometric grid of [`STEPS`] steps whose last point is `up_to_a` itself (the answer is a
-/// grid point: at most one step above the exact one); `None` when no grid point does. Errors
-/// as [`Correction::from_profile`] and [`super::fit`], and for a range that is not
+/// ([`Correction::from_profile`] at that current) is written whole for `fw`, found on
+/// [`scan_currents`]'s grid; `None` when no grid point does. Errors as
+/// [`Correction::from_profile`] and [`super::fit`], and for a range that is not
 /// `0 < from_a ≤ up_to_a`.
 pub fn lowest_fitting_current_a(
     p: &Profile,
     from_a: f64,
     up_to_a: f64,
     fw: Firmware,
+) -> Result<Option<f64>, ExportError> {
+    scan_currents(from_a, up_to_a, |i| fits_whole(p, i, fw))
+}
+
+/// The first current of the geometric grid `from_a·(up_to_a/from_a)^(n/`[`STEPS`]`)`,
+/// `n = 0…STEPS`, whose last point is `up_to_a` itself, at which `fits` holds (the answer is
+/// at most one step above the exact one, if `fits` is monotonic); `None` when none does.
+/// Refuses a range that is not finite with `0 < from_a ≤ up_to_a`.
+pub(super) fn scan_currents(
+    from_a: f64,
+    up_to_a: f64,
+    mut fits: impl FnMut(f64) -> Result<bool, ExportError>,
 ) -> Result<Option<f64>, ExportError> {
     if !(from_a.is_finite() && up_to_a.is_finite() && from_a > 0.0 && from_a <= up_to_a) {
         return Err(ExportError::Invalid(format!(
@@ -60,7 +71,7 @@ pub fn lowest_fitting_current_a(
         } else {
             (from_a * (up_to_a / from_a).powf(f64::from(n) / f64::from(STEPS))).min(up_to_a)
         };
-        if fits_whole(p, i, fw)? {
+        if fits(i)? {
             return Ok(Some(i));
         }
     }
