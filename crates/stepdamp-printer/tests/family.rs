@@ -19,6 +19,10 @@
 //!    response with the whole table; only if it is short of [`TARGET_DB`] and no second trial
 //!    was taken, one Newton step with the secant influence, kept if it measures lower. At
 //!    most two trial captures (trial settings) per harmonic.
+//! 4. Where the table that would cancel what was measured passes ±127 (`Route::wanted`), the
+//!    route again from an empty table at the run current where the measured tables say it
+//!    fits (`TableVsCurrent`, the advice `accel refine` prints), or [`BLIND_RAISE`] higher
+//!    where they show none; at most [`MAX_CURRENT_RAISES`] times (each with its own trials).
 //!
 //! The score compares the planned baseline with no correction and with the final table,
 //! each measured with fresh noise seeds (captures the route did not use), averaged as often
@@ -28,6 +32,8 @@ use stepdamp_accel::influence::{harmonic_response, influence, table_item, table_
 use stepdamp_accel::plan::{CapturePlanOptions, MAX_TRIAL_MAG, plan_captures};
 use stepdamp_accel::{AccelCapture, Axis, Complex, Gcode, Response, TrialSweep, read_captures};
 use stepdamp_export::Correction;
+use stepdamp_export::prusa::headroom::lowest_fitting_current_a;
+use stepdamp_export::prusa::measured::{MeasuredTable, TableVsCurrent};
 use stepdamp_export::prusa::{Firmware, SHIFT_LIMIT, Spectrum, fit};
 use stepdamp_printer::printer::LSB_10_BIT_2G;
 use stepdamp_printer::{SimulatedPrinter, family_printer};
@@ -145,6 +151,11 @@ struct Route {
     now: (Complex, Response),
     /// The secant influence through the baseline and the first correction (m/s² per rad).
     secant: Complex,
+    /// The trial's influence coefficient (m/s² per rad).
+    influence: Complex,
+    /// The sizes of the trial's shift and of the first correction's (rad): the larger one
+    /// defines its coefficient better ([`Route::wanted`]).
+    sizes: (f64, f64),
     /// The baseline and each correction's response, as measured (m/s²).
     steps: Vec<f64>,
     /// Whether a shift had to be scaled down to keep the table within ±127.
@@ -241,7 +252,24 @@ fn first_step(b: &mut Bench, h: u32, (base, trial): (Gcode, Gcode)) -> Route {
     let y2 = measure(b, base, h, n);
     let secant = (y2.value - y0.value) / u1;
     let steps = vec![y0.value.abs(), y2.value.abs()];
-    Route { h, base, repeats: n, trials, in_use, y0, now: (u1, y2), secant, steps, table_full }
+    let (influence, sizes) = (inf.coefficient, (table_shift(mag, t.pha_start, scale).abs(), u1.abs()));
+    Route { h, base, repeats: n, trials, in_use, y0, now: (u1, y2), secant, influence, sizes, steps, table_full }
+}
+
+impl Route {
+    /// The item that would cancel the last response, unscaled: the item in use plus the shift
+    /// now, less the last response over an influence: the secant's, through the first
+    /// correction, where that correction is at least [`SECANT_SHIFT_SHARE`] of the trial's
+    /// size, else the trial's. A smaller shift is the more linear one (printer 15's harmonic 4:
+    /// 5.5 m/s² per rad through a 0.024 rad correction, 0.8 through the 0.12 rad trial), but
+    /// a correction scaled to almost nothing to fit a full table gives a secant of noise
+    /// (printer 29's: 1.2·10⁻⁵ rad).
+    fn wanted(&self) -> Complex {
+        let secant_ok =
+            self.secant.is_finite() && self.secant.abs() > 0.0 && self.sizes.1 >= SECANT_SHIFT_SHARE * self.sizes.0;
+        let c = if secant_ok { self.secant } else { self.influence };
+        self.in_use + self.now.0 - self.now.1.value / c
+    }
 }
 
 /// The second step, once every harmonic of both directions has its first correction: the
@@ -298,18 +326,44 @@ fn rotor_hz(p: &SimulatedPrinter) -> f64 {
     (k / (m.inertia_kg_m2 + p.head.reflected_inertia_kg_m2())).sqrt() / std::f64::consts::TAU
 }
 
-/// One printer: the route in both directions for every harmonic, then the score.
-/// Returns the seed, the worst reduction (dB), whether the true motor's correction fits the
-/// table (its peak within ±[`SHIFT_LIMIT`]) and a line per direction and harmonic.
-fn printer_score(seed: u64) -> (u64, f64, bool, String) {
+/// The route at one run current: the plans, the routes, the printer before and after.
+struct AtCurrent {
+    plans: Vec<[(Gcode, Gcode); 2]>,
+    routes: Vec<(usize, usize, Route)>,
+    untouched: SimulatedPrinter,
+    corrected: SimulatedPrinter,
+    /// The next noise seed: the captures after the route's have noise it did not use.
+    next_seed: u64,
+    /// Whether the planned baselines reach the sensor's ±2 g at both speeds: then the
+    /// baseline the score compares with is not the head's either.
+    clips_both: bool,
+}
+
+impl AtCurrent {
+    /// The table that would cancel every harmonic as measured, unscaled ([`Route::wanted`]).
+    fn wanted(&self) -> MeasuredTable {
+        let mut table = self.corrected.correction;
+        let scale = table.firmware.scale();
+        for (dir, _, r) in &self.routes {
+            let s = if *dir == 0 { &mut table.forward } else { &mut table.backward };
+            let (mag, pha) = table_item(r.wanted(), scale);
+            s.mag[r.h as usize] = mag as f32;
+            s.pha[r.h as usize] = pha as f32;
+        }
+        MeasuredTable { peak_a: self.corrected.run_current_a, table }
+    }
+}
+
+/// The route on `printer` at its run current, both directions, every harmonic, its noise
+/// seeds counted on from `next_seed`.
+fn route_at(text: &mut String, seed: u64, printer: SimulatedPrinter, next_seed: u64) -> AtCurrent {
     use std::fmt::Write;
-    let mut text = String::new();
     let model = user_model();
-    let mut b = Bench { printer: family_printer(seed), next_seed: seed * 1000 };
+    let mut b = Bench { printer, next_seed };
     let p = &b.printer;
     let _ = writeln!(
         text,
-        "printer {seed}: J {:.0} g·cm², {:.2} A, pulley r {:.2} mm, carriage {:.2} kg, belt {:.0} Hz ζ {:.3}, \
+        "printer {seed}: J {:.0} g·cm², {:.3} A, pulley r {:.2} mm, carriage {:.2} kg, belt {:.0} Hz ζ {:.3}, \
          rotor on the magnetic stiffness {:.0} Hz",
         p.profile.motor.inertia_kg_m2 * 1e7,
         p.run_current_a,
@@ -352,7 +406,66 @@ fn printer_score(seed: u64) -> (u64, f64, bool, String) {
     for (_, _, r) in &mut routes {
         second_step(&mut b, r);
     }
-    let corrected = b.printer.clone();
+    let clips_both = clips_planned && clips_faster;
+    AtCurrent { plans, routes, untouched, corrected: b.printer, next_seed: b.next_seed, clips_both }
+}
+
+/// At most this many times the route moves to a higher run current when its table is full.
+const MAX_CURRENT_RAISES: usize = 4;
+/// The smallest first correction, as a share of the trial, whose secant [`Route::wanted`] uses.
+const SECANT_SHIFT_SHARE: f64 = 0.1;
+/// The factor on the run current when the measured tables show no current up to the drive's
+/// limit that fits (an influence measured off its linear range can make a wanted table
+/// several times too large): the route records again that much higher.
+const BLIND_RAISE: f64 = 1.25;
+
+/// One printer: the route in both directions for every harmonic at its run current; where a
+/// shift had to be scaled to fit the table, at the current where the measured tables say it
+/// fits ([`TableVsCurrent`], the advice `accel refine` prints: the last two tables, in whole
+/// mA of RMS as `M906` takes it), again from an empty table; then the score at the last one.
+/// Returns the seed, the worst reduction (dB), whether the true motor's correction fits the
+/// table at the last current (its peak within ±[`SHIFT_LIMIT`]) and a line per direction and
+/// harmonic.
+fn printer_score(seed: u64) -> (u64, f64, bool, String) {
+    use std::fmt::Write;
+    let mut text = String::new();
+    let mut printer = family_printer(seed);
+    let mut measured: Vec<MeasuredTable> = Vec::new();
+    let mut at = route_at(&mut text, seed, printer.clone(), seed * 1000);
+    for _ in 0..MAX_CURRENT_RAISES {
+        let wanted = at.wanted();
+        if TableVsCurrent::fit(&[wanted]).unwrap().fits_at(wanted.peak_a) {
+            break;
+        }
+        measured.push(wanted);
+        // The last two tables where their currents differ enough for the model, else the last.
+        let n = measured.len();
+        let two_apart = n >= 2 && TableVsCurrent::fit(&measured[n - 2..]).is_ok();
+        let last_two = &measured[if two_apart { n - 2 } else { n - 1 }..];
+        let limit = printer.profile.drive.current_limit_a;
+        let next = TableVsCurrent::fit(last_two).unwrap().lowest_fitting_current_a(limit).unwrap();
+        let wanted = measured.last().unwrap().table;
+        let fw = wanted.firmware;
+        let _ = writeln!(
+            text,
+            "  the measured table needs {:?} / {:?} of 127 at {:.3} A: it fits from {next:.3?} A ({} table(s))",
+            wanted.forward.peak_shift(fw),
+            wanted.backward.peak_shift(fw),
+            printer.run_current_a,
+            last_two.len()
+        );
+        let limit_a = printer.profile.drive.current_limit_a;
+        let next = match next {
+            Some(i) => i,
+            None if printer.run_current_a < limit_a => (BLIND_RAISE * printer.run_current_a).min(limit_a),
+            None => break,
+        };
+        let rms_ma = (1e3 * next / std::f64::consts::SQRT_2).ceil();
+        printer.run_current_a = rms_ma * std::f64::consts::SQRT_2 / 1e3;
+        at = route_at(&mut text, seed, printer.clone(), at.next_seed);
+    }
+    let AtCurrent { plans, routes, untouched, corrected, next_seed, clips_both } = at;
+    let mut b = Bench { printer: corrected.clone(), next_seed };
     let fw = corrected.correction.firmware;
     let truth = fit(&Correction::from_profile(&corrected.profile, Some(corrected.run_current_a)).unwrap(), fw).unwrap();
     let _ = writeln!(
@@ -384,11 +497,19 @@ fn printer_score(seed: u64) -> (u64, f64, bool, String) {
             after.radius95
         );
     }
-    (seed, worst, truth.wanted_peak_shift <= SHIFT_LIMIT as f64, text)
+    // Whether the true motor's correction fits the table at a current from the printer's own
+    // up to the drive's limit: where it does, the route must find it.
+    let own = family_printer(seed);
+    let fits_somewhere =
+        lowest_fitting_current_a(&own.profile, own.run_current_a, own.profile.drive.current_limit_a, fw).unwrap();
+    let _ = writeln!(text, "  the true motor's correction fits from {fits_somewhere:.3?} A");
+    (seed, worst, fits_somewhere.is_some() && !clips_both, text)
 }
 
-/// The worst reduction of every printer of `seeds` (dB), and whether the true motor's
-/// correction fits the firmware's table (printed, one line per printer).
+/// The worst reduction of every printer of `seeds` (dB), and whether it is asserted: the true
+/// motor's correction fits the firmware's table at a current up to the drive's limit and,
+/// at the current the route ends at, a speed's baselines stay within the sensor's ±2 g
+/// (printed, one line per printer).
 fn family(seeds: std::ops::RangeInclusive<u64>) -> Vec<(u64, f64, bool)> {
     let seeds: Vec<u64> = seeds.collect();
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(seeds.len());
@@ -406,13 +527,20 @@ fn family(seeds: std::ops::RangeInclusive<u64>) -> Vec<(u64, f64, bool)> {
     out.into_iter().map(|(k, db, fits, _)| (k, db, fits)).collect()
 }
 
-/// Asserts `TARGET_DB` on every printer whose correction fits the table; prints the others.
+/// Asserts `TARGET_DB` on every printer of [`family`]'s asserted ones; prints the others.
 fn assert_family(seeds: std::ops::RangeInclusive<u64>) {
     let f = family(seeds);
     let (fit, beyond): (Vec<&(u64, f64, bool)>, Vec<_>) = f.iter().partition(|o| o.2);
     let worst = fit.iter().map(|o| o.1).fold(f64::INFINITY, f64::min);
-    println!("worst reduction over the {} printers whose correction fits the table: {worst:.1} dB", fit.len());
-    println!("printers whose correction passes the table's ±127 (not asserted): {beyond:.1?}");
+    println!(
+        "worst reduction over the {} printers whose correction fits the table at a current up to the drive's \
+         limit, measured on baselines within ±2 g: {worst:.1} dB",
+        fit.len()
+    );
+    println!(
+        "printers whose correction fits at no such current, or whose baselines clip at both speeds there (not \
+         asserted): {beyond:.1?}"
+    );
     let failed: Vec<_> = fit.iter().filter(|o| o.1 < TARGET_DB).collect();
     assert!(failed.is_empty(), "below {TARGET_DB} dB: {failed:.1?}");
 }
@@ -422,9 +550,15 @@ fn family_route_lowers_every_harmonic_by_20_db_in_both_directions() {
     assert_family(1..=5);
 }
 
-/// The larger family: `cargo test --release -p stepdamp-printer --test family -- --ignored`.
+/// The larger family: `cargo test --release -p stepdamp-printer --test family -- --ignored`;
+/// with `FAMILY_SEED=k` in the environment, printer `k` alone.
 #[test]
 #[ignore = "the larger family: about a minute in release"]
 fn larger_family_route_lowers_every_harmonic_by_20_db_in_both_directions() {
+    if let Ok(one) = std::env::var("FAMILY_SEED") {
+        let k: u64 = one.parse().unwrap();
+        assert_family(k..=k);
+        return;
+    }
     assert_family(1..=30);
 }
