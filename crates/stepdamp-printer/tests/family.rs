@@ -24,9 +24,10 @@
 //!    fits (`TableVsCurrent`, the advice `accel refine` prints), or [`BLIND_RAISE`] higher
 //!    where they show none; at most [`MAX_CURRENT_RAISES`] times (each with its own trials).
 //!
-//! The score compares the planned baseline with no correction and with the final table,
-//! each measured with fresh noise seeds (captures the route did not use), averaged as often
-//! as the route averaged that harmonic.
+//! The score compares the planned baseline with no correction and with the final table, at
+//! the current the route ends at, each measured with fresh noise seeds (captures the route
+//! did not use), averaged as often as the route averaged that harmonic, through the sensor
+//! without its ±2 g clipping and 10-bit steps (the head's vibration, not the sensor's).
 
 use stepdamp_accel::influence::{harmonic_response, influence, table_item, table_shift};
 use stepdamp_accel::plan::{CapturePlanOptions, MAX_TRIAL_MAG, plan_captures};
@@ -334,9 +335,6 @@ struct AtCurrent {
     corrected: SimulatedPrinter,
     /// The next noise seed: the captures after the route's have noise it did not use.
     next_seed: u64,
-    /// Whether the planned baselines reach the sensor's ±2 g at both speeds: then the
-    /// baseline the score compares with is not the head's either.
-    clips_both: bool,
 }
 
 impl AtCurrent {
@@ -406,8 +404,7 @@ fn route_at(text: &mut String, seed: u64, printer: SimulatedPrinter, next_seed: 
     for (_, _, r) in &mut routes {
         second_step(&mut b, r);
     }
-    let clips_both = clips_planned && clips_faster;
-    AtCurrent { plans, routes, untouched, corrected: b.printer, next_seed: b.next_seed, clips_both }
+    AtCurrent { plans, routes, untouched, corrected: b.printer, next_seed: b.next_seed }
 }
 
 /// At most this many times the route moves to a higher run current when its table is full.
@@ -464,7 +461,16 @@ fn printer_score(seed: u64) -> (u64, f64, bool, String) {
         printer.run_current_a = rms_ma * std::f64::consts::SQRT_2 / 1e3;
         at = route_at(&mut text, seed, printer.clone(), at.next_seed);
     }
-    let AtCurrent { plans, routes, untouched, corrected, next_seed, clips_both } = at;
+    let AtCurrent { plans, routes, untouched, corrected, next_seed } = at;
+    // The score's sensor: the printer's noise and rate without its ±2 g clipping and 10-bit
+    // steps. The route measured through the real one; the score is the head's vibration,
+    // which a clipped capture does not show (printer 22 at 1.278 A clips at both speeds: its
+    // uncorrected harmonic 4 backward read 0.44 m/s² through the real sensor, 1.58 with the
+    // other harmonics corrected).
+    let [untouched, corrected] = [untouched, corrected].map(|mut p| {
+        p.accel.lsb_m_s2 = 0.0;
+        p
+    });
     let mut b = Bench { printer: corrected.clone(), next_seed };
     let fw = corrected.correction.firmware;
     let truth = fit(&Correction::from_profile(&corrected.profile, Some(corrected.run_current_a)).unwrap(), fw).unwrap();
@@ -503,12 +509,11 @@ fn printer_score(seed: u64) -> (u64, f64, bool, String) {
     let fits_somewhere =
         lowest_fitting_current_a(&own.profile, own.run_current_a, own.profile.drive.current_limit_a, fw).unwrap();
     let _ = writeln!(text, "  the true motor's correction fits from {fits_somewhere:.3?} A");
-    (seed, worst, fits_somewhere.is_some() && !clips_both, text)
+    (seed, worst, fits_somewhere.is_some(), text)
 }
 
 /// The worst reduction of every printer of `seeds` (dB), and whether it is asserted: the true
-/// motor's correction fits the firmware's table at a current up to the drive's limit and,
-/// at the current the route ends at, a speed's baselines stay within the sensor's ±2 g
+/// motor's correction fits the firmware's table at a current up to the drive's limit
 /// (printed, one line per printer).
 fn family(seeds: std::ops::RangeInclusive<u64>) -> Vec<(u64, f64, bool)> {
     let seeds: Vec<u64> = seeds.collect();
@@ -534,13 +539,10 @@ fn assert_family(seeds: std::ops::RangeInclusive<u64>) {
     let worst = fit.iter().map(|o| o.1).fold(f64::INFINITY, f64::min);
     println!(
         "worst reduction over the {} printers whose correction fits the table at a current up to the drive's \
-         limit, measured on baselines within ±2 g: {worst:.1} dB",
+         limit: {worst:.1} dB",
         fit.len()
     );
-    println!(
-        "printers whose correction fits at no such current, or whose baselines clip at both speeds there (not \
-         asserted): {beyond:.1?}"
-    );
+    println!("printers whose correction fits at no such current (not asserted): {beyond:.1?}");
     let failed: Vec<_> = fit.iter().filter(|o| o.1 < TARGET_DB).collect();
     assert!(failed.is_empty(), "below {TARGET_DB} dB: {failed:.1?}");
 }
