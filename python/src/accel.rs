@@ -248,7 +248,9 @@ fn run_current(peak: Option<f64>, rms: Option<f64>) -> PyResult<RunCurrent> {
 }
 
 /// Python's names of the inputs, in the library's messages.
-const NAMES: Names = Names { paths: "paths", axis: "axis", motor: "motor", trial: "klipper_trials" };
+/// Python's names of the inputs, in the library's messages.
+pub(crate) const NAMES: Names =
+    Names { paths: "paths", axis: "axis", motor: "motor", trial: "klipper_trials", kinematics: "kinematics" };
 
 fn interval<'py>(py: Python<'py>, i: Interval95) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
@@ -269,6 +271,8 @@ fn fit_dict<'py>(py: Python<'py>, f: &RippleFit) -> PyResult<Bound<'py, PyDict>>
     head.set_item("belt_stiffness_n_per_m", h.belt_stiffness_n_per_m)?;
     head.set_item("rotor_damping_nm_s_per_rad", interval(py, h.rotor_damping_nm_s_per_rad)?)?;
     head.set_item("shift_delay_s", interval(py, h.shift_delay_s)?)?;
+    head.set_item("sensor_gain", f.sensor_gain)?;
+    head.set_item("sensor_sign_fitted", f.sensor_sign_fitted)?;
     let a = &f.axis;
     let axis = PyDict::new(py);
     axis.set_item("pulley_radius_m", a.pulley_radius_m)?;
@@ -334,12 +338,14 @@ pub(crate) enum PathsArg {
 /// revolution, mm, in [`MM_PER_REV_RANGE`] (the pulley's pitch radius is this / 2π).
 /// `periods_per_block`: electrical periods per lock-in block. `klipper_trials`: `{path: (H, U, PHI)}`, the shift
 /// `U·sin(H·θe + PHI)` (rad) each Klipper log's driver table carried. `orders`: the orders
-/// to identify (`None`: 1–16 where the sampling rate allows, the CLI's).
+/// to identify (`None`: 1–16 where the sampling rate allows, the CLI's). `kinematics`:
+/// `"cartesian"` or `"corexy"`, for Prusa captures (the firmware's projection; `None`:
+/// cartesian); refused with Klipper logs, which carry theirs.
 ///
 /// Returns the library's `RippleFit` as a dict: `head` (`total_inertia_kg_m2`,
 /// `carriage_mass_kg`, `belt_hz`, `belt_damping_ratio`, `rotor_damping_nm_s_per_rad`,
 /// `shift_delay_s`, each `{value, low, high}` with its 95 % interval, and
-/// `belt_stiffness_n_per_m`), `axis_model` (the head's model at the estimates), `harmonics`
+/// `belt_stiffness_n_per_m`, `sensor_gain`, `sensor_sign_fitted`), `axis_model` (the head's model at the estimates), `harmonics`
 /// (per direction and order: `amplitude_nm` and `phase_rad` with intervals, torque on the
 /// rotor `−A·sin(k·θe + φ)`; `radius95_nm`, `blocks`, `speeds_rev_s`, `explained_share`),
 /// `not_identified` (with `reason`), the validation `explained_share`, `blocks`, `captures`;
@@ -349,7 +355,7 @@ pub(crate) enum PathsArg {
 /// arguments (`paths`, `axis`, `motor`, `klipper_trials`).
 #[pyfunction]
 #[pyo3(signature = (paths, motor, axis, *, current_peak_a = None, current_rms_a = None, mm_per_rev = 32.0,
-    periods_per_block = 4, klipper_trials = None, orders = None))]
+    periods_per_block = 4, klipper_trials = None, orders = None, kinematics = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn identify_accel<'py>(
     py: Python<'py>,
@@ -362,6 +368,7 @@ pub fn identify_accel<'py>(
     periods_per_block: u32,
     klipper_trials: Option<HashMap<PathBuf, TrialArg>>,
     orders: Option<Vec<u32>>,
+    kinematics: Option<&str>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let paths = match paths {
         PathsArg::One(p) => vec![p],
@@ -380,10 +387,11 @@ pub fn identify_accel<'py>(
     if paths.is_empty() {
         return Err(err("paths: no capture given"));
     }
+    let kinematics = kinematics.map(crate::klipper::kinematics_of).transpose()?;
     let base = &motor.inner;
     let m = &base.motor;
     let defaults = RippleOptions::new(u32::from(m.pole_pairs), mm_per_rev * 1e-3 / TAU, run.peak_a());
-    let o = RippleOptions {
+    let mut o = RippleOptions {
         rotor_inertia_kg_m2: m.inertia_kg_m2,
         km_nm_per_a: m.km_nm_per_a,
         viscous_nm_s_per_rad: m.viscous_nm_s_per_rad,
@@ -397,6 +405,7 @@ pub fn identify_accel<'py>(
         Reconstruction { periods_per_rev: o.periods_per_rev, start_angle_rad: 0.0, first_sample_s: 0.0, mm_per_rev };
     let (fit, format) = interruptible(py, |_| -> Result<_, String> {
         let s = sources::read(&paths, axis, &klipper_trials, o.periods_per_rev, &NAMES).map_err(|e| e.to_string())?;
+        o.sensor_gain = s.sensor_gain(kinematics, axis, &NAMES).map_err(|e| e.to_string())?;
         Ok((s.fit(&r, &o).map_err(|e| e.to_string())?, s.format()))
     })?;
     let toml = RippleFile::new(&fit, &base.name, axis_letter(axis), run.peak_a()).to_toml_string().map_err(err)?;

@@ -16,11 +16,17 @@ use stepdamp_accel::Axis;
 use stepdamp_accel::klipper::plan::{KlipperPlanOptions, plan_klipper};
 use stepdamp_accel::klipper::table_step::PairStep;
 use stepdamp_accel::klipper::{Kinematics, TrialShift};
-use stepdamp_accel::sources::{self, Names, Sources};
+use stepdamp_accel::sources::{self, Sources};
 use stepdamp_export::tmc::{self, ShiftTable};
 
-/// Python's names of the inputs, in the library's messages.
-const NAMES: Names = Names { paths: "paths", axis: "axis", motor: "motor", trial: "klipper_trials" };
+use crate::accel::NAMES;
+
+/// `kinematics` as Python passes it: `"cartesian"` or `"corexy"`.
+pub(crate) fn kinematics_of(name: &str) -> PyResult<Kinematics> {
+    Kinematics::from_name(name).ok_or_else(|| {
+        err(format!("kinematics \"{}\": cartesian or corexy", stepdamp_export::escape::line(name)))
+    })
+}
 
 /// The motor of a driver section (`"tmc5160 stepper_x"`), checked as the CLI checks it.
 fn motor_of(section: &str) -> PyResult<Axis> {
@@ -55,13 +61,7 @@ pub fn klipper_plan<'py>(
     steady_s: f64,
 ) -> PyResult<Bound<'py, PyDict>> {
     let motor = motor_of(axis)?;
-    let kinematics = match kinematics {
-        "cartesian" => Kinematics::Cartesian,
-        "corexy" => Kinematics::CoreXy,
-        o => {
-            return Err(err(format!("kinematics \"{}\": cartesian or corexy", stepdamp_export::escape::line(o))));
-        }
-    };
+    let kinematics = kinematics_of(kinematics)?;
     let o = KlipperPlanOptions {
         rotation_distance_mm: rotation_distance,
         travel_mm,

@@ -159,6 +159,10 @@ def test_mixed_kinds_trials_of_other_files_and_a_missing_current_are_refused(tmp
         stepdamp.identify_accel([log, M973], motor, "X", current_peak_a=0.9)
     with pytest.raises(StepdampError, match="is not one of the paths"):
         stepdamp.identify_accel([log], motor, "X", current_peak_a=0.9, klipper_trials={tmp_path / "x": (4, 0.1, 0)})
+    with pytest.raises(StepdampError, match="kinematics goes with Prusa captures"):
+        stepdamp.identify_accel([log], motor, "X", current_peak_a=0.9, kinematics="corexy")
+    with pytest.raises(StepdampError, match='kinematics "delta": cartesian or corexy'):
+        stepdamp.identify_accel([M973], motor, "X", current_peak_a=0.9, kinematics="delta")
     with pytest.raises(StepdampError, match="Prusa captures carry their trial in M973"):
         stepdamp.identify_accel([M973], motor, "X", current_peak_a=0.9, klipper_trials={M973: (4, 0.1, 0)})
     with pytest.raises(StepdampError, match="trial goes with Klipper logs"):
@@ -223,6 +227,7 @@ def test_identify_accel_gives_the_clis_head_ripple_and_validation_for_the_same_s
         low_high = w[f"{file_key}_95{unit}"]
         assert [iv["low"], iv["high"]] == pytest.approx(low_high, rel=1e-12), key
     assert h["belt_stiffness_n_per_m"] == pytest.approx(w["belt_stiffness_n_per_m"], rel=1e-12)
+    assert (h["sensor_gain"], h["sensor_sign_fitted"]) == (w["sensor_gain"], w["sensor_sign_fitted"]) == (1.0, True)
     assert len(got["harmonics"]) == len(want["ripple"])
     for g, r in zip(got["harmonics"], want["ripple"]):
         assert (g["direction"], g["order"], g["blocks"]) == (r["direction"], r["order"], r["blocks"])

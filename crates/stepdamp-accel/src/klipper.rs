@@ -74,6 +74,11 @@ impl Kinematics {
         }
     }
 
+    /// The kinematics of a [`Kinematics::name`], `None` for any other text.
+    pub fn from_name(name: &str) -> Option<Self> {
+        [Kinematics::Cartesian, Kinematics::CoreXy].into_iter().find(|k| k.name() == name)
+    }
+
     /// The name Klipper's configuration uses.
     pub fn name(self) -> &'static str {
         match self {

@@ -138,6 +138,30 @@ struct Reader<'a> {
     done: Vec<AccelCapture>,
 }
 
+/// The acceleration `M973`/`M974` print per acceleration of the moving motor's belt, from
+/// the firmware's `project_to_axis` (calibration.cpp:240–269 at `v6.3.1`).
+///
+/// - Cartesian (MK4): the sensor's own axis, `1`.
+/// - CoreXY (XL, iX): the head's acceleration dotted with `(1, 1)/√2` for X (motor A) and
+///   `(−1, 1)/√2` for Y (motor B), unnormalised (`pseudo_project`). One motor alone moves
+///   the head by half its belt on each of x and y (`physical_to_logical`, 205–214: A moves
+///   `(½, ½)`, B `(½, −½)`), so X prints `+1/√2` and Y `−1/√2` of the belt's acceleration.
+/// - The Core One (CoreXY) prints one sensor axis per motor (its y for X, its x for Y):
+///   `1/√2` if that axis lies along the motor's diagonal, as the choice suggests; taken with
+///   the XL's signs (an **assumption**: its mounting is not in the source).
+///
+/// Which way the belt moves for a rising phase is the motor's wiring, so the sign is fitted
+/// where it matters ([`crate::ripple::RippleOptions::sensor_gain`] takes the size).
+pub fn sensor_gain(kinematics: crate::klipper::Kinematics, axis: crate::capture::Axis) -> f64 {
+    use crate::capture::Axis;
+    use crate::klipper::Kinematics;
+    match (kinematics, axis) {
+        (Kinematics::Cartesian, _) => 1.0,
+        (Kinematics::CoreXy, Axis::X) => std::f64::consts::FRAC_1_SQRT_2,
+        (Kinematics::CoreXy, Axis::Y) => -std::f64::consts::FRAC_1_SQRT_2,
+    }
+}
+
 /// Every capture in `input`, in order; `file` names it in messages and in
 /// [`AccelCapture::source`] (escaped: [`stepdamp_out::input::printable`]). Reads line by line: memory stays within [`MAX_LINE_BYTES`] per
 /// line and [`MAX_TOTAL_SAMPLES`] samples.

@@ -26,6 +26,7 @@
 //! 95 % intervals: the covariance `σ²·(JᵀWJ)⁻¹` (`σ²` from the weighted residuals) through the
 //! delta method (normal quantile 1.96; for `T_k` a disc of radius `√(5.99·λ_max)`).
 
+mod display;
 pub mod file;
 mod fit;
 
@@ -35,7 +36,6 @@ use crate::head::{AxisModel, load_angle_rad};
 use crate::lockin::block_responses;
 use fit::{Fixed, Point};
 use std::f64::consts::TAU;
-use std::fmt;
 
 /// The normal distribution's two-sided 95 % quantile.
 const Z95: f64 = 1.959_964;
@@ -44,6 +44,11 @@ const CHI2_2_95: f64 = 5.991_465;
 /// The fewest blocks an order and direction needs to be fitted.
 pub const MIN_BLOCKS: usize = 8;
 /// The largest relative half-width of `J_t`'s and `ω_b`'s 95 % intervals an identification
+/// The largest shift delay (s) taken for a drive's when the sensor's sign is chosen: its
+/// computation and current loop take a few of its 50 µs control periods (the simulated drive
+/// 1–2, docs/accelerometer.md#identifying-the-ripple-from-captures); 500 µs is ten.
+pub const MAX_SHIFT_DELAY_S: f64 = 5e-4;
+
 /// accepts: wider is refused as ill-determined.
 pub const MAX_RELATIVE_HALF_WIDTH: f64 = 0.3;
 
@@ -82,6 +87,11 @@ pub struct RippleOptions {
     /// current vector by `U = scale·C·e^{iA}`, a known torque `K·U/Nr` that fixes the scale of
     /// the head's response (and so `J_t`).
     pub trial_scale: f64,
+    /// The size of the printed acceleration per acceleration of the motor's belt: 1 where the
+    /// sensor reads the belt's direction, `1/√2` on a Prusa CoreXY axis
+    /// ([`crate::prusa::sensor_gain`]). Its sign (how the sensor and the motor's phase are
+    /// wired, which no capture says) is fitted: [`RippleFit::sensor_gain`].
+    pub sensor_gain: f64,
 }
 
 impl RippleOptions {
@@ -100,6 +110,7 @@ impl RippleOptions {
             band_fraction: crate::plan::MAX_BAND_FRACTION,
             min_explained: 0.9,
             trial_scale: 4.0,
+            sensor_gain: 1.0,
         }
     }
 }
@@ -213,6 +224,14 @@ pub struct RippleFit {
     pub blocks: usize,
     /// The captures used.
     pub captures: usize,
+    /// The printed acceleration per acceleration of the belt (`axis`'s head acceleration):
+    /// [`RippleOptions::sensor_gain`] with the sign that fits the captures better. A sensor
+    /// (or a motor's phase) turned the other way flips every response, baseline and trial
+    /// alike; fitted with the wrong sign, the trial's known torque would not match.
+    pub sensor_gain: f64,
+    /// Whether that sign was fitted: without a trial it cannot be (the flipped captures fit
+    /// as well with the ripple flipped), and it is taken as `+`.
+    pub sensor_sign_fitted: bool,
 }
 
 /// Why the ripple cannot be identified; one line each.
@@ -240,7 +259,8 @@ pub enum RippleError {
 fn check(o: &RippleOptions) -> Result<(), RippleError> {
     let bad = |what, value: f64, allowed| Err(RippleError::Parameter { what, value: value.to_string(), allowed });
     let pos = |v: f64| v.is_finite() && v > 0.0;
-    let checks: [(&'static str, f64, bool, &'static str); 9] = [
+    let checks: [(&'static str, f64, bool, &'static str); 10] = [
+        ("sensor_gain", o.sensor_gain, o.sensor_gain > 0.0 && o.sensor_gain <= 1.0, "in (0, 1] (its sign is fitted)"),
         ("trial_scale", o.trial_scale, pos(o.trial_scale), "positive (4 for firmware ≥ 6.3.1)"),
         ("periods_per_rev", f64::from(o.periods_per_rev), o.periods_per_rev >= 1, "at least 1"),
         ("pulley_radius_m", o.pulley_radius_m, (1e-3..=0.05).contains(&o.pulley_radius_m), "in 0.001..=0.05 m"),
@@ -417,9 +437,26 @@ pub fn identify_ripple<C: RippleCapture>(
             "no order has {MIN_BLOCKS} lock-in blocks in band: record an M974 sweep per direction (identify plan --accel)"
         )));
     }
-    let fixed = Fixed { radius_m: o.pulley_radius_m, viscous: o.viscous_nm_s_per_rad };
     let heaviest = o.rotor_inertia_kg_m2 + 20.0 * o.pulley_radius_m * o.pulley_radius_m;
-    let Some(sol) = fit::solve(&fixed, &points, groups.len(), (o.rotor_inertia_kg_m2 * 1.01, heaviest)) else {
+    // Both signs of the sensor's gain: the one whose shift delay is a drive's (within
+    // MAX_SHIFT_DELAY_S), then the smaller residual. A delay of half a period of the trial's
+    // harmonic flips the trial as a flipped sensor does: with trials at one order and speed
+    // the two fits explain the captures equally (1.25 ms for order 4 at 2 rev/s).
+    let solve = |sign: f64| {
+        let fixed = Fixed { radius_m: sign * o.sensor_gain * o.pulley_radius_m, viscous: o.viscous_nm_s_per_rad };
+        fit::solve(&fixed, &points, groups.len(), (o.rotor_inertia_kg_m2 * 1.01, heaviest)).map(|s| (sign, s))
+    };
+    let rank = |s: &fit::Solution| {
+        let delay_s = s.x[fit::NL - 1] * fit::DELAY_UNIT_S;
+        (delay_s.abs() > MAX_SHIFT_DELAY_S, s.residual.iter().sum::<f64>())
+    };
+    let best = match (solve(1.0), solve(-1.0).filter(|b| b.1.delay_fitted)) {
+        (Some(a), Some(b)) => {
+            Some(if rank(&b.1).partial_cmp(&rank(&a.1)) == Some(std::cmp::Ordering::Less) { b } else { a })
+        }
+        (a, b) => a.or(b),
+    };
+    let Some((sign, sol)) = best else {
         return Err(RippleError::IllDetermined(
             "the captures do not separate the head's inertia, belt frequency and damping (singular normal equations): add a sweep over a wider speed range".into(),
         ));
@@ -454,6 +491,8 @@ pub fn identify_ripple<C: RippleCapture>(
         explained_share,
         blocks: points.len(),
         captures: captures.len(),
+        sensor_gain: sign * o.sensor_gain,
+        sensor_sign_fitted: sol.delay_fitted,
     })
 }
 
@@ -532,69 +571,6 @@ fn harmonic_of(
         blocks: mine().count(),
         speeds_rev_s: speeds,
         explained_share: 1.0 - sol.residual[g] / sol.total[g],
-    }
-}
-
-impl fmt::Display for RippleFit {
-    /// The head, the harmonics per direction with their intervals, what was left out, and the
-    /// validation.
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let h = &self.head;
-        let iv =
-            |i: Interval95, k: f64, p: usize| format!("{:.p$} [{:.p$}, {:.p$}]", k * i.value, k * i.low, k * i.high);
-        writeln!(f, "head (95 % intervals):")?;
-        writeln!(f, "  total inertia J_t  {} ×1e-5 kg·m²", iv(h.total_inertia_kg_m2, 1e5, 3))?;
-        writeln!(f, "  carriage mass m    {} kg", iv(h.carriage_mass_kg, 1.0, 3))?;
-        writeln!(f, "  belt mode          {} Hz", iv(h.belt_hz, 1.0, 1))?;
-        writeln!(f, "  belt damping ratio {}", iv(h.belt_damping_ratio, 1.0, 3))?;
-        writeln!(f, "  belt stiffness     {:.3e} N/m", h.belt_stiffness_n_per_m)?;
-        writeln!(f, "  rotor damping c    {} ×1e-3 N·m·s/rad", iv(h.rotor_damping_nm_s_per_rad, 1e3, 3))?;
-        writeln!(f, "  shift delay        {} µs", iv(h.shift_delay_s, 1e6, 1))?;
-        writeln!(f, "ripple at the run current, torque on the rotor −A·sin(k·θe + φ):")?;
-        for x in &self.harmonics {
-            writeln!(
-                f,
-                "  {:<8} k={:>2}: A {} mN·m, φ {:+.3} ± {:.3} rad ({} blocks, {:.2}–{:.2} rev/s, {:.1} % explained)",
-                x.direction.name(),
-                x.order,
-                iv(x.amplitude_nm, 1e3, 2),
-                x.phase_rad.value,
-                0.5 * (x.phase_rad.high - x.phase_rad.low),
-                x.blocks,
-                x.speeds_rev_s.0,
-                x.speeds_rev_s.1,
-                100.0 * x.explained_share
-            )?;
-        }
-        // Runs of orders left out alike, one line each.
-        let alike = |a: &NotIdentified, b: &NotIdentified| {
-            a.direction == b.direction
-                && a.blocks == b.blocks
-                && a.band_limit_rev_s.is_some() == b.band_limit_rev_s.is_some()
-        };
-        for run in self.not_identified.chunk_by(alike) {
-            let (first, last) = (&run[0], &run[run.len() - 1]);
-            let orders = if run.len() == 1 {
-                format!("k={}", first.order)
-            } else {
-                format!("k={}–{}", first.order, last.order)
-            };
-            let why = match (first.band_limit_rev_s, last.band_limit_rev_s) {
-                (Some(a), Some(b)) if run.len() > 1 => format!(
-                    "{} block(s) in band each (fewer than {MIN_BLOCKS}): they need speeds at or below {a:.2}…{b:.2} rev/s",
-                    first.blocks
-                ),
-                _ => first.reason.clone(),
-            };
-            writeln!(f, "  {:<8} {orders}: not identified: {why}", first.direction.name())?;
-        }
-        write!(
-            f,
-            "validation: the model explains {:.1} % of the vibration at the motor's harmonics ({} blocks of {} captures)",
-            100.0 * self.explained_share,
-            self.blocks,
-            self.captures
-        )
     }
 }
 

@@ -7,7 +7,7 @@
 
 use crate::capture::{AccelCapture, Axis, Reconstruction, SETTLE_S};
 use crate::klipper::segment::MIN_SEGMENT_S;
-use crate::klipper::{KlipperError, KlipperOptions, Log, TrialShift};
+use crate::klipper::{Kinematics, KlipperError, KlipperOptions, Log, TrialShift};
 use crate::prusa::{MAX_NAME_CHARS, ReadError};
 use crate::ripple::{RippleError, RippleFit, RippleOptions, identify_ripple};
 use std::io::Read;
@@ -26,6 +26,8 @@ pub struct Names {
     pub motor: &'static str,
     /// The Klipper logs' trials (`--klipper-trial`).
     pub trial: &'static str,
+    /// The printer's kinematics (`--kinematics`).
+    pub kinematics: &'static str,
 }
 
 /// The recordings read: Klipper logs or Prusa captures, never both.
@@ -56,6 +58,12 @@ pub enum SourcesError {
         path: String,
         /// The paths' name.
         paths: &'static str,
+    },
+    /// Kinematics given with Klipper logs, which carry theirs.
+    #[error("{kinematics} goes with Prusa captures: a Klipper log carries its printer.kinematics")]
+    KinematicsWithKlipper {
+        /// The kinematics' name.
+        kinematics: &'static str,
     },
     /// A trial given with Prusa captures, which carry theirs in `M973`.
     #[error("{trial} goes with Klipper logs (LOG.json.gz); Prusa captures carry their trial in M973")]
@@ -218,6 +226,18 @@ impl Sources {
         self.len() == 0
     }
 
+    /// The size of the printed acceleration per belt acceleration for [`RippleOptions::sensor_gain`]:
+    /// Prusa's projection ([`crate::prusa::sensor_gain`], `kinematics` cartesian when not
+    /// given); 1 for Klipper logs, whose reader projects on the belt itself (`x + y` on
+    /// CoreXY), and which refuse a `kinematics` (they carry theirs).
+    pub fn sensor_gain(&self, kinematics: Option<Kinematics>, axis: Axis, names: &Names) -> Result<f64, SourcesError> {
+        match (self, kinematics) {
+            (Sources::Klipper(_), Some(_)) => Err(SourcesError::KinematicsWithKlipper { kinematics: names.kinematics }),
+            (Sources::Klipper(_), None) => Ok(1.0),
+            (Sources::Prusa(_), k) => Ok(crate::prusa::sensor_gain(k.unwrap_or(Kinematics::Cartesian), axis).abs()),
+        }
+    }
+
     /// The ripple fit ([`identify_ripple`]) of the Klipper logs' stretches of steady motion
     /// or of the Prusa captures; refuses Klipper logs without such a stretch.
     pub fn fit(&self, r: &Reconstruction, o: &RippleOptions) -> Result<RippleFit, SourcesError> {
@@ -246,7 +266,13 @@ impl Sources {
 mod tests {
     use super::*;
 
-    const CLI: Names = Names { paths: "--accel", axis: "--axis", motor: "--motor", trial: "--klipper-trial" };
+    const CLI: Names = Names {
+        paths: "--accel",
+        axis: "--axis",
+        motor: "--motor",
+        trial: "--klipper-trial",
+        kinematics: "--kinematics",
+    };
 
     /// A directory of one test's own, removed when dropped.
     struct Dir(PathBuf);

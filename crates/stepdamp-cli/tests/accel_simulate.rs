@@ -23,7 +23,7 @@ fn accel_simulate_writes_a_capture_the_reader_reads_back_with_its_gcode() {
     let o = simulate(GCODE, &out, &["--echo"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let said = String::from_utf8_lossy(&o.stdout);
-    assert!(said.starts_with("wrote ") && said.contains("M973 X F2 R4 H4") && said.contains("0.9 A peak"), "{said}");
+    assert!(said.starts_with("wrote ") && said.contains("M973 X F2 R4 H4") && said.contains("0.900 A peak"), "{said}");
     let captures = stepdamp_accel::prusa::read_file(&out).unwrap();
     assert_eq!(captures.len(), 1);
     let c = &captures[0];

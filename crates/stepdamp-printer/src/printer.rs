@@ -25,6 +25,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use std::f64::consts::TAU;
 use stepdamp_accel::capture::{MARKER_ACCEL_REV_S2, MARKER_SPEED_REV_S, MAX_HARMONIC, SETTLE_S};
+use stepdamp_accel::klipper::Kinematics;
 use stepdamp_accel::{AccelCapture, Annotations, Axis, CaptureError, Gcode, Reconstruction, TrialSweep};
 use stepdamp_export::prusa::PrusaCorrection;
 use stepdamp_sim::{ClosedLoop, Compensation, CorrectionTable, Mode, Profile, SimOptions};
@@ -119,6 +120,10 @@ pub struct SimulatedPrinter {
     pub driver_table: Option<CorrectionTable>,
     /// The accelerometer.
     pub accel: AccelModel,
+    /// The printer's kinematics: the firmware prints `stepdamp_accel::prusa::sensor_gain` of
+    /// the belt's acceleration (cartesian 1; CoreXY `+1/√2` on X, `−1/√2` on Y, the XL's
+    /// projection). Klipper logs ([`Self::motan_log`]) take theirs from their own setup.
+    pub kinematics: Kinematics,
     /// Seed of the capture's rate error and noise: the same seed repeats a capture exactly;
     /// set another for each capture that should have its own noise.
     pub seed: u64,
@@ -163,6 +168,7 @@ impl SimulatedPrinter {
             },
             driver_table: None,
             accel: AccelModel::default(),
+            kinematics: Kinematics::Cartesian,
             seed: 1,
         }
     }
@@ -340,7 +346,7 @@ impl SimulatedPrinter {
             trace.rotor_rad.push(nr * 0.5 * (before.theta + after.theta));
             trace.head_m_s2.push(head);
         }
-        self.sample(&mut trace, end_s);
+        self.sample(&mut trace, end_s, stepdamp_accel::prusa::sensor_gain(self.kinematics, g.axis()));
         Ok(trace)
     }
 
@@ -388,8 +394,9 @@ impl SimulatedPrinter {
     }
 
     /// Samples the head's acceleration from `first_sample_s` to `end_s` at the capture's
-    /// rate (linear interpolation between the periods' ends), then noise and quantisation.
-    fn sample(&self, t: &mut Trace, end_s: f64) {
+    /// rate (linear interpolation between the periods' ends) times the firmware's projection
+    /// `gain`, then noise and quantisation.
+    fn sample(&self, t: &mut Trace, end_s: f64, gain: f64) {
         let a = &self.accel;
         let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
         let delta = if a.rate_spread > 0.0 { rng.random_range(-a.rate_spread..=a.rate_spread) } else { 0.0 };
@@ -403,8 +410,8 @@ impl SimulatedPrinter {
             let i = x.floor() as usize;
             let f = x - i as f64;
             match (t.head_m_s2.get(i), t.head_m_s2.get(i + 1)) {
-                (Some(&y0), Some(&y1)) => y0 + f * (y1 - y0),
-                (Some(&y0), None) => y0,
+                (Some(&y0), Some(&y1)) => gain * (y0 + f * (y1 - y0)),
+                (Some(&y0), None) => gain * y0,
                 _ => 0.0,
             }
         };

@@ -1,6 +1,7 @@
 //! The ripple identified from simulated speed sweeps equals the motor's ripple at the run
 //! current (`docs/accelerometer.md#identifying-the-ripple-from-captures`).
 
+use stepdamp_accel::klipper::Kinematics;
 use stepdamp_accel::ripple::{Direction, RippleFit, RippleOptions, identify_ripple};
 use stepdamp_accel::{AccelCapture, Axis, Complex, Gcode, read_captures};
 use stepdamp_printer::{HeadModel, SimulatedPrinter};
@@ -14,13 +15,13 @@ fn real_motor() -> Profile {
 /// An assumed Core-One-like run current: 0.9 A peak.
 const CURRENT_A: f64 = 0.9;
 
-/// `M973 X F<speed> R±<revs> H<h>` without and with the trial `C<mag> A0` in both
+/// `M973 <axis> F<speed> R±<revs> H<h>` without and with the trial `C<mag> A0` in both
 /// directions on `p`, read back.
-fn trials(p: &SimulatedPrinter, speed: f64, revs: f64, h: u32, mag: f64) -> Vec<AccelCapture> {
+fn trials(p: &SimulatedPrinter, axis: Axis, speed: f64, revs: f64, h: u32, mag: f64) -> Vec<AccelCapture> {
     let mut out = Vec::new();
     for (r, m, seed) in [(revs, 0.0, 11), (revs, mag, 12), (-revs, 0.0, 13), (-revs, mag, 14)] {
         let t = stepdamp_accel::TrialSweep { harmonic: h, pha_start: 0.0, pha_end: 0.0, mag_start: m, mag_end: m };
-        let g = Gcode::ParamSweep { axis: Axis::X, speed, revs: r, trial: t };
+        let g = Gcode::ParamSweep { axis, speed, revs: r, trial: t };
         let p = SimulatedPrinter { seed, ..p.clone() };
         let mut v = read_captures(p.capture(&g).unwrap().as_bytes(), "sim").unwrap();
         out.push(v.remove(0).with_gcode(g));
@@ -28,13 +29,13 @@ fn trials(p: &SimulatedPrinter, speed: f64, revs: f64, h: u32, mag: f64) -> Vec<
     out
 }
 
-/// `M974 X A<a> B<b> R±<revs>` in both directions on `p`, read back.
-fn sweeps(p: &SimulatedPrinter, a: f64, b: f64, revs: f64) -> Vec<AccelCapture> {
+/// `M974 <axis> A<a> B<b> R±<revs>` in both directions on `p`, read back.
+fn sweeps(p: &SimulatedPrinter, axis: Axis, a: f64, b: f64, revs: f64) -> Vec<AccelCapture> {
     [revs, -revs]
         .iter()
         .zip(1..)
         .map(|(&r, seed)| {
-            let g = Gcode::SpeedSweep { axis: Axis::X, start_speed: a, end_speed: b, revs: r };
+            let g = Gcode::SpeedSweep { axis, start_speed: a, end_speed: b, revs: r };
             let p = SimulatedPrinter { seed, ..p.clone() };
             let mut v = read_captures(p.capture(&g).unwrap().as_bytes(), "sim").unwrap();
             v.remove(0).with_gcode(g)
@@ -118,9 +119,25 @@ fn check(p: &SimulatedPrinter, fit: &RippleFit) {
 /// then `H4 C0.03`, the plan's trial capped) at 2 rev/s per direction, its known torque
 /// fixing the scale.
 fn identified(p: &SimulatedPrinter) -> RippleFit {
-    let mut c = sweeps(p, 2.0, 4.0, 8.0);
-    c.extend(trials(p, 2.0, 6.0, 4, 0.03));
-    identify_ripple(&c, &p.reconstruction(), &options(p)).unwrap()
+    identified_on(p, Axis::X, &options(p))
+}
+
+/// [`identified`] on `axis` with the options `o`.
+fn identified_on(p: &SimulatedPrinter, axis: Axis, o: &RippleOptions) -> RippleFit {
+    let mut c = sweeps(p, axis, 2.0, 4.0, 8.0);
+    c.extend(trials(p, axis, 2.0, 6.0, 4, 0.03));
+    identify_ripple(&c, &p.reconstruction(), o).unwrap()
+}
+
+#[test]
+fn a_corexy_printers_y_axis_through_the_firmwares_projection_gives_the_same_ripple() {
+    // The XL's projection prints −1/√2 of the belt's acceleration on Y; told the size, the
+    // fit finds the sign and the ripple of the default head's cartesian test.
+    let p = SimulatedPrinter { kinematics: Kinematics::CoreXy, ..SimulatedPrinter::new(real_motor(), CURRENT_A) };
+    let gain = stepdamp_accel::prusa::sensor_gain(Kinematics::CoreXy, Axis::Y);
+    let fit = identified_on(&p, Axis::Y, &RippleOptions { sensor_gain: gain.abs(), ..options(&p) });
+    assert_eq!(fit.sensor_gain, gain);
+    check(&p, &fit);
 }
 
 #[test]

@@ -143,7 +143,9 @@ fn a_trial_wave_table_from_stepdamp_gives_the_motors_order_4_ripple() {
     let shift = TrialShift { harmonic: 4, amplitude_rad: u, phase_rad: 0.0 };
     let e = order_4_error(&plain, &recipe(&plain, &trial, 0.0, shift));
     assert!(e <= 1.0, "{e} of the tolerance");
-    // The same logs told the opposite sign are far off: the test can tell a wrong sign.
+    // The same logs told the opposite sign read as a sensor turned the other way (the fit
+    // takes the sensor's sign, not the trial's, as unknown): the ripple comes out flipped,
+    // half a turn off, which the check tells.
     let wrong = TrialShift { phase_rad: std::f64::consts::PI, ..shift };
     let e = order_4_error(&plain, &recipe(&plain, &trial, 0.0, wrong));
     assert!(e > 10.0, "a trial of the wrong sign is only {e} of the tolerance off");

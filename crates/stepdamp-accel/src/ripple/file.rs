@@ -41,6 +41,8 @@ struct HeadSection {
     rotor_damping_95_nm_s_per_rad: [f64; 2],
     shift_delay_s: f64,
     shift_delay_95_s: [f64; 2],
+    sensor_gain: f64,
+    sensor_sign_fitted: bool,
 }
 
 /// `[[ripple]]`: one identified harmonic of one direction.
@@ -97,6 +99,8 @@ impl RippleFile {
                 rotor_damping_95_nm_s_per_rad: pair(h.rotor_damping_nm_s_per_rad),
                 shift_delay_s: h.shift_delay_s.value,
                 shift_delay_95_s: pair(h.shift_delay_s),
+                sensor_gain: f.sensor_gain,
+                sensor_sign_fitted: f.sensor_sign_fitted,
             },
             ripple: f
                 .harmonics

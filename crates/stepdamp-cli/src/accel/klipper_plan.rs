@@ -1,19 +1,11 @@
 //! `stepdamp accel klipper-plan` (docs/accelerometer.md#refining-a-trinamic-table).
 //! Translation only: the moves are `stepdamp_accel::klipper::plan`'s.
 
+use super::KinematicsArg;
 use anyhow::Result;
 use stepdamp_accel::klipper::Kinematics;
 use stepdamp_accel::klipper::plan::{KlipperPlanOptions, plan_klipper};
 use stepdamp_export::tmc;
-
-/// `printer.kinematics`.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum KinematicsArg {
-    /// One motor per axis.
-    Cartesian,
-    /// Two belts; one motor alone moves the head diagonally.
-    Corexy,
-}
 
 /// Arguments of `stepdamp accel klipper-plan`.
 #[derive(clap::Args, Debug)]
@@ -46,10 +38,7 @@ pub struct KlipperPlanArgs {
 pub(super) fn run_klipper_plan(a: KlipperPlanArgs) -> Result<()> {
     let section = tmc::klipper_section(&a.axis)?;
     let axis = super::klipper_motor(&section, &a.axis)?;
-    let kinematics = match a.kinematics {
-        KinematicsArg::Cartesian => Kinematics::Cartesian,
-        KinematicsArg::Corexy => Kinematics::CoreXy,
-    };
+    let kinematics = Kinematics::from(a.kinematics);
     let o = KlipperPlanOptions {
         rotation_distance_mm: a.rotation_distance,
         travel_mm: a.travel_mm,

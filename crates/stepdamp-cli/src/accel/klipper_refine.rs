@@ -5,7 +5,7 @@
 use crate::common::{load_motor, write_atomic};
 use anyhow::{Result, anyhow, bail};
 use std::path::PathBuf;
-use stepdamp_accel::sources::{Names, Sources, read};
+use stepdamp_accel::sources::{Sources, read};
 use stepdamp_export::escape;
 use stepdamp_export::tmc;
 
@@ -49,7 +49,7 @@ pub(super) fn run_klipper_refine(a: KlipperRefineArgs) -> Result<()> {
     let Some(&(_, first)) = trials.first() else { bail!("--klipper-trial: at least one trial log") };
     // Refuse an order no table turns before reading the logs.
     tmc::check_order(first.harmonic).map_err(|e| anyhow!("--klipper-trial: {e}"))?;
-    let names = Names { paths: "--log", axis: "--axis", motor: "--motor", trial: "--klipper-trial" };
+    let names = super::LOG_NAMES;
     let Sources::Klipper(logs) = read(&a.logs, axis, &trials, u32::from(motor.motor.pole_pairs), &names)? else {
         bail!("--log: Prusa captures; accel refine takes those (this command reads Klipper's logs)")
     };

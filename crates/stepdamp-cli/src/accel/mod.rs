@@ -73,11 +73,37 @@ fn table_in_use(arg: &str, axis: char) -> Result<PrusaCorrection> {
     Ok(c)
 }
 
+/// The printer's kinematics (Klipper's `printer.kinematics`; a Prusa MK4 is cartesian, the
+/// XL, iX and Core One CoreXY).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum KinematicsArg {
+    /// One motor per axis.
+    Cartesian,
+    /// Two belts; one motor alone moves the head diagonally.
+    Corexy,
+}
+
+impl From<KinematicsArg> for stepdamp_accel::klipper::Kinematics {
+    fn from(k: KinematicsArg) -> Self {
+        match k {
+            KinematicsArg::Cartesian => Self::Cartesian,
+            KinematicsArg::Corexy => Self::CoreXy,
+        }
+    }
+}
+
+/// The names of the `accel` commands' inputs, in the library's messages.
+pub(crate) const LOG_NAMES: stepdamp_accel::sources::Names = stepdamp_accel::sources::Names {
+    paths: "--log",
+    axis: "--axis",
+    motor: "--motor",
+    trial: "--klipper-trial",
+    kinematics: "--kinematics",
+};
+
 /// Every capture of every log, refusing one of another axis.
 pub(crate) fn read_captures(logs: &[PathBuf], axis: Axis) -> Result<Vec<AccelCapture>> {
-    const NAMES: stepdamp_accel::sources::Names =
-        stepdamp_accel::sources::Names { paths: "--log", axis: "--axis", motor: "--motor", trial: "--klipper-trial" };
-    Ok(stepdamp_accel::sources::read_prusa(logs, axis, &NAMES)?)
+    Ok(stepdamp_accel::sources::read_prusa(logs, axis, &LOG_NAMES)?)
 }
 
 /// `--axis`: `X` or `Y` (either case), with its letter for the M971 lines.

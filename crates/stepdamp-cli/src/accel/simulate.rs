@@ -40,6 +40,10 @@ pub struct SimulateArgs {
     /// The accelerometer.
     #[arg(long, value_enum, default_value_t)]
     pub sensor: Sensor,
+    /// The printer's kinematics: the firmware prints the belt's acceleration on a cartesian
+    /// axis (MK4), ±1/√2 of it on CoreXY (XL, iX, Core One).
+    #[arg(long, value_enum, default_value_t = super::KinematicsArg::Cartesian)]
+    pub kinematics: super::KinematicsArg,
     /// Seed of the sensor's rate error and noise (another seed, another capture's noise).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -64,6 +68,7 @@ pub(super) fn run_simulate(a: SimulateArgs) -> Result<()> {
     let current = a.current.run_current()?.peak_a();
     let mut p = SimulatedPrinter::new(load_motor(&a.motor)?, current);
     p.seed = a.seed;
+    p.kinematics = a.kinematics.into();
     let axis = if g.axis() == stepdamp_accel::Axis::X { 'X' } else { 'Y' };
     p.correction = super::table_in_use(&a.in_use, axis)?;
     if a.sensor == Sensor::Ideal {

@@ -10,7 +10,7 @@ use anyhow::{Result, bail};
 use std::f64::consts::TAU;
 use std::path::PathBuf;
 use stepdamp_accel::Reconstruction;
-use stepdamp_accel::klipper::TrialShift;
+use stepdamp_accel::klipper::{Kinematics, TrialShift};
 use stepdamp_accel::ripple::file::RippleFile;
 use stepdamp_accel::ripple::{MM_PER_REV_RANGE, RippleOptions};
 use stepdamp_accel::sources::{self, Names, Sources};
@@ -36,7 +36,7 @@ pub(super) fn run_accel_cmd(a: &FitArgs) -> Result<()> {
     let base = load_motor(motor)?;
     check_output_dir(out)?;
     let m = &base.motor;
-    let o = RippleOptions {
+    let mut o = RippleOptions {
         rotor_inertia_kg_m2: m.inertia_kg_m2,
         km_nm_per_a: m.km_nm_per_a,
         viscous_nm_s_per_rad: m.viscous_nm_s_per_rad,
@@ -53,6 +53,7 @@ pub(super) fn run_accel_cmd(a: &FitArgs) -> Result<()> {
     };
     let trials = klipper_trials(a)?;
     let sources = sources::read(&a.accel, axis, &trials, o.periods_per_rev, &NAMES)?;
+    o.sensor_gain = sources.sensor_gain(a.kinematics.map(Kinematics::from), axis, &NAMES)?;
     let fit = sources.fit(&r, &o)?;
     match &sources {
         Sources::Klipper(logs) => outln!(
@@ -63,7 +64,16 @@ pub(super) fn run_accel_cmd(a: &FitArgs) -> Result<()> {
             a.mm_per_rev
         ),
         Sources::Prusa(c) => {
-            outln!("{} captures of axis {letter} on {} at {run}; belt {} mm/rev", c.len(), base.name, a.mm_per_rev)
+            let k = Kinematics::from(a.kinematics.unwrap_or(crate::accel::KinematicsArg::Cartesian));
+            outln!(
+                "{} captures of axis {letter} on {} at {run}; belt {} mm/rev; {} kinematics (--kinematics), the firmware \
+                 prints {:.3} of the belt's acceleration",
+                c.len(),
+                base.name,
+                a.mm_per_rev,
+                k.name(),
+                o.sensor_gain
+            )
         }
     }
     outln!("{fit}");
@@ -74,7 +84,8 @@ pub(super) fn run_accel_cmd(a: &FitArgs) -> Result<()> {
 }
 
 /// The CLI's names of the inputs, in the library's messages.
-const NAMES: Names = Names { paths: "--accel", axis: "--axis", motor: "--motor", trial: "--klipper-trial" };
+const NAMES: Names =
+    Names { paths: "--accel", axis: "--axis", motor: "--motor", trial: "--klipper-trial", kinematics: "--kinematics" };
 
 /// Every `--klipper-trial LOG=H,U,PHI`, parsed; the library checks that each `LOG` is one of
 /// the `--accel` logs.

@@ -88,6 +88,11 @@ pub(super) struct FitArgs {
     /// the pulley's pitch radius is this / 2π.
     #[arg(long, default_value_t = 32.0)]
     pub(super) mm_per_rev: f64,
+    /// With --accel and Prusa captures: the printer's kinematics, for the firmware's
+    /// projection of the head's acceleration (cartesian: MK4, 1 of the belt's; corexy: XL, iX,
+    /// Core One, 1/√2). Klipper logs carry their own.
+    #[arg(long, value_enum)]
+    pub(super) kinematics: Option<crate::accel::KinematicsArg>,
     /// With --accel: whole electrical periods per lock-in block.
     #[arg(long, default_value_t = 4)]
     pub(super) periods_per_block: u32,
