@@ -248,7 +248,6 @@ fn run_current(peak: Option<f64>, rms: Option<f64>) -> PyResult<RunCurrent> {
 }
 
 /// Python's names of the inputs, in the library's messages.
-/// Python's names of the inputs, in the library's messages.
 pub(crate) const NAMES: Names =
     Names { paths: "paths", axis: "axis", motor: "motor", trial: "klipper_trials", kinematics: "kinematics" };
 

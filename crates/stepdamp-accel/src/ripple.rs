@@ -43,12 +43,13 @@ const Z95: f64 = 1.959_964;
 const CHI2_2_95: f64 = 5.991_465;
 /// The fewest blocks an order and direction needs to be fitted.
 pub const MIN_BLOCKS: usize = 8;
-/// The largest relative half-width of `J_t`'s and `ω_b`'s 95 % intervals an identification
-/// The largest shift delay (s) taken for a drive's when the sensor's sign is chosen: its
-/// computation and current loop take a few of its 50 µs control periods (the simulated drive
-/// 1–2, docs/accelerometer.md#identifying-the-ripple-from-captures); 500 µs is ten.
-pub const MAX_SHIFT_DELAY_S: f64 = 5e-4;
+/// The shift delays (s) a drive can have, for choosing the sensor's sign: its computation
+/// and current loop take a few of its 50 µs control periods (the simulated drive 1–2,
+/// docs/accelerometer.md#identifying-the-ripple-from-captures); up to 500 µs is ten, and
+/// down to −50 µs leaves room for the fit's scatter around 0. A delay is never negative.
+pub const SHIFT_DELAY_RANGE_S: (f64, f64) = (-5e-5, 5e-4);
 
+/// The largest relative half-width of `J_t`'s and `ω_b`'s 95 % intervals an identification
 /// accepts: wider is refused as ill-determined.
 pub const MAX_RELATIVE_HALF_WIDTH: f64 = 0.3;
 
@@ -229,8 +230,9 @@ pub struct RippleFit {
     /// (or a motor's phase) turned the other way flips every response, baseline and trial
     /// alike; fitted with the wrong sign, the trial's known torque would not match.
     pub sensor_gain: f64,
-    /// Whether that sign was fitted: without a trial it cannot be (the flipped captures fit
-    /// as well with the ripple flipped), and it is taken as `+`.
+    /// Whether that sign was told apart: both signs fitted and the one kept has a drive's
+    /// shift delay ([`SHIFT_DELAY_RANGE_S`]). Without a trial it cannot be (the flipped
+    /// captures fit as well with the ripple flipped), and it is taken as `+`.
     pub sensor_sign_fitted: bool,
 }
 
@@ -421,7 +423,8 @@ fn collect<C: RippleCapture>(captures: &[C], r: &Reconstruction, o: &RippleOptio
 /// the segments of a Klipper log, [`crate::klipper::Log::segments`]; recorded with the
 /// correction off; module doc). Without any trial (a Klipper log, or Prusa sweeps alone) the
 /// shift delay has nothing to be fitted from: it is reported as 0 with an infinite interval,
-/// and the scale of the response comes from the sweeps alone. Refuses with [`RippleError::IllDetermined`] when no order
+/// and the scale of the response comes from the sweeps alone. The sign of the sensor's gain
+/// is fitted where a trial can tell it ([`RippleFit::sensor_gain`]). Refuses with [`RippleError::IllDetermined`] when no order
 /// has blocks in band, when the normal equations are singular, when `J_t` or `ω_b` is known
 /// to worse than ±[`MAX_RELATIVE_HALF_WIDTH`], when `J_t` comes out below the rotor's own, or
 /// when the model explains less than [`RippleOptions::min_explained`] of the response.
@@ -438,23 +441,30 @@ pub fn identify_ripple<C: RippleCapture>(
         )));
     }
     let heaviest = o.rotor_inertia_kg_m2 + 20.0 * o.pulley_radius_m * o.pulley_radius_m;
-    // Both signs of the sensor's gain: the one whose shift delay is a drive's (within
-    // MAX_SHIFT_DELAY_S), then the smaller residual. A delay of half a period of the trial's
-    // harmonic flips the trial as a flipped sensor does: with trials at one order and speed
-    // the two fits explain the captures equally (1.25 ms for order 4 at 2 rev/s).
+    // Both signs of the sensor's gain, where a trial can tell them: the one whose shift delay
+    // is a drive's (SHIFT_DELAY_RANGE_S), then the smaller residual. A delay of half a period
+    // of the trial's harmonic flips the trial as a flipped sensor does: with trials at one
+    // order and speed the two fits explain the captures equally (1.25 ms for order 4 at
+    // 2 rev/s). Without a trial the flipped captures fit as well with the ripple flipped.
     let solve = |sign: f64| {
         let fixed = Fixed { radius_m: sign * o.sensor_gain * o.pulley_radius_m, viscous: o.viscous_nm_s_per_rad };
         fit::solve(&fixed, &points, groups.len(), (o.rotor_inertia_kg_m2 * 1.01, heaviest)).map(|s| (sign, s))
     };
-    let rank = |s: &fit::Solution| {
+    let plausible = |s: &fit::Solution| {
         let delay_s = s.x[fit::NL - 1] * fit::DELAY_UNIT_S;
-        (delay_s.abs() > MAX_SHIFT_DELAY_S, s.residual.iter().sum::<f64>())
+        (SHIFT_DELAY_RANGE_S.0..=SHIFT_DELAY_RANGE_S.1).contains(&delay_s)
     };
-    let best = match (solve(1.0), solve(-1.0).filter(|b| b.1.delay_fitted)) {
+    let residual = |s: &fit::Solution| {
+        let r = s.residual.iter().sum::<f64>();
+        if r.is_nan() { f64::INFINITY } else { r }
+    };
+    let any_trial = points.iter().any(|p| p.known != Complex::default());
+    let (best, compared) = match (solve(1.0), if any_trial { solve(-1.0) } else { None }) {
         (Some(a), Some(b)) => {
-            Some(if rank(&b.1).partial_cmp(&rank(&a.1)) == Some(std::cmp::Ordering::Less) { b } else { a })
+            let key = |s: &fit::Solution| (!plausible(s), residual(s));
+            (Some(if key(&b.1) < key(&a.1) { b } else { a }), true)
         }
-        (a, b) => a.or(b),
+        (a, b) => (a.or(b), false),
     };
     let Some((sign, sol)) = best else {
         return Err(RippleError::IllDetermined(
@@ -492,7 +502,7 @@ pub fn identify_ripple<C: RippleCapture>(
         blocks: points.len(),
         captures: captures.len(),
         sensor_gain: sign * o.sensor_gain,
-        sensor_sign_fitted: sol.delay_fitted,
+        sensor_sign_fitted: compared && plausible(&sol),
     })
 }
 

@@ -33,7 +33,7 @@ use stepdamp_accel::influence::{harmonic_response, influence, table_item, table_
 use stepdamp_accel::plan::{CapturePlanOptions, MAX_TRIAL_MAG, plan_captures};
 use stepdamp_accel::{AccelCapture, Axis, Complex, Gcode, Response, TrialSweep, read_captures};
 use stepdamp_export::Correction;
-use stepdamp_export::prusa::headroom::lowest_fitting_current_a;
+use stepdamp_export::prusa::headroom::{lowest_fitting_current_a, whole_ma_rms_at_or_above};
 use stepdamp_export::prusa::measured::{MeasuredTable, TableVsCurrent};
 use stepdamp_export::prusa::{Firmware, SHIFT_LIMIT, Spectrum, fit};
 use stepdamp_printer::printer::LSB_10_BIT_2G;
@@ -499,8 +499,8 @@ fn printer_score(seed: u64) -> (u64, f64, bool, String) {
             None if printer.run_current_a < limit_a => (BLIND_RAISE * printer.run_current_a).min(limit_a),
             None => break,
         };
-        let rms_ma = (1e3 * next / std::f64::consts::SQRT_2).ceil();
-        printer.run_current_a = rms_ma * std::f64::consts::SQRT_2 / 1e3;
+        let Some(typed) = whole_ma_rms_at_or_above(next, limit_a).unwrap() else { break };
+        printer.run_current_a = typed.peak_a();
         at = route_at(&mut text, seed, printer.clone(), at.next_seed);
         count(&at);
     }

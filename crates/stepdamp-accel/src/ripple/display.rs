@@ -18,7 +18,11 @@ impl fmt::Display for RippleFit {
         writeln!(f, "  belt stiffness     {:.3e} N/m", h.belt_stiffness_n_per_m)?;
         writeln!(f, "  rotor damping c    {} ×1e-3 N·m·s/rad", iv(h.rotor_damping_nm_s_per_rad, 1e3, 3))?;
         writeln!(f, "  shift delay        {} µs", iv(h.shift_delay_s, 1e6, 1))?;
-        let sign = if self.sensor_sign_fitted { "sign fitted" } else { "sign assumed: no trial" };
+        let sign = if self.sensor_sign_fitted {
+            "sign fitted"
+        } else {
+            "sign not told apart: no trial, or no fit with a drive's delay; taken as found"
+        };
         writeln!(f, "  sensor gain        {:+.3} (printed per belt acceleration; {sign})", self.sensor_gain)?;
         writeln!(f, "ripple at the run current, torque on the rotor −A·sin(k·θe + φ):")?;
         for x in &self.harmonics {

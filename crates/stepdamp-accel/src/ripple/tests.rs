@@ -187,7 +187,7 @@ fn without_a_trial_the_delay_is_not_fitted_and_reported_unbounded() {
     assert_eq!((d.value, d.low, d.high), (0.0, f64::NEG_INFINITY, f64::INFINITY));
     // Nor is the sensor's sign: flipped captures fit as well with the ripple flipped.
     assert!(!fit.sensor_sign_fitted && fit.sensor_gain == 1.0);
-    assert!(fit.to_string().contains("sign assumed: no trial"), "{fit}");
+    assert!(fit.to_string().contains("sign not told apart: no trial"), "{fit}");
     // On the model's own captures the sweeps alone fix the scale too (the simulated printer,
     // whose rotor is not this linear model, needs the trial: tests/klipper_log.rs there).
     let (axis, ripple) = truth();

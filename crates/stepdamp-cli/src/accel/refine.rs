@@ -7,7 +7,7 @@ use crate::export::CurrentArgs;
 use anyhow::{Result, bail};
 use std::path::PathBuf;
 use stepdamp_accel::refine::{InUse, RefineOptions, Refined, TABLE_ITEMS, Timing, refine};
-use stepdamp_export::RunCurrent;
+use stepdamp_export::prusa::headroom::whole_ma_rms_at_or_above;
 use stepdamp_export::prusa::measured::{MeasuredTable, TableVsCurrent};
 use stepdamp_export::prusa::{self, Firmware, Fitted, PrusaCorrection, Spectrum, gcode};
 
@@ -107,7 +107,8 @@ pub(super) fn run_refine(a: RefineArgs) -> Result<()> {
 
 /// The G-code of `c`, refused when its table would not fit the firmware's int8 shifts, with
 /// the run current at which it would (`stepdamp_export::prusa::measured`, from this one
-/// table: a lower bound where the ripple grows with the current) up to `limit_a`.
+/// table: exact for a detent, an estimate where the ripple grows with the current) up to
+/// `limit_a`.
 fn write_table(
     c: &PrusaCorrection,
     axis: char,
@@ -124,20 +125,24 @@ fn write_table(
         };
         let measured = MeasuredTable { peak_a: run.peak_a(), table: *c };
         let up_to = limit_a.max(run.peak_a());
+        let limit = "the profile's drive.current_limit_a, or the run current where that is higher";
         let advice = match TableVsCurrent::fit(&[measured])?.lowest_fitting_current_a(up_to)? {
-            Some(at) => {
-                let at = RunCurrent::from_rms((1e3 * at / std::f64::consts::SQRT_2).ceil() / 1e3)?;
-                format!(
-                    "if the ripple did not grow with the current, the table would fit from {at} (`M906 {axis}{:.0}`, \
-                     in mA RMS); where it grows, higher: record the plan again at that current (whether the motor \
-                     may run that hot is yours to check) and refine from those captures",
+            Some(from) => match whole_ma_rms_at_or_above(from, up_to)? {
+                Some(at) => format!(
+                    "with a shift that falls as 1/I (a detent's: exact for one; the part of the ripple that grows with \
+                     the current moves it either way) the table would fit from {at} (`M906 {axis}{:.0}`, in mA RMS): \
+                     record the plan again at that current (whether the motor may run that hot is yours to check) and \
+                     refine from those captures",
                     1e3 * at.rms_a()
-                )
+                ),
+                None => format!(
+                    "with a shift that falls as 1/I it would fit from {from:.4} A peak, but no whole mA of RMS from \
+                     there is within {up_to:.3} A peak ({limit})"
+                ),
+            },
+            None => {
+                format!("no run current up to {up_to:.3} A peak ({limit}) makes it fit with a shift that falls as 1/I")
             }
-            None => format!(
-                "no run current up to {up_to:.3} A peak (the profile's drive.current_limit_a) makes it fit, even \
-                 if the ripple did not grow with the current"
-            ),
         };
         bail!(
             "the refined table {needs} at {run}, past Prusa's int8 shifts (±{} of 4096, ±0.195 rad): the ripple is \

@@ -103,8 +103,8 @@ pub(super) fn run_fit_cmd(a: FitArgs, _global: &Global) -> Result<()> {
     if !a.accel.is_empty() {
         return super::accel_cmd::run_accel_cmd(&a);
     }
-    if a.axis.is_some() || a.current.given() {
-        bail!("--axis and --current/--current-rms go with --accel (run logs carry their own currents)");
+    if a.axis.is_some() || a.current.given() || a.kinematics.is_some() {
+        bail!("--axis, --kinematics and --current/--current-rms go with --accel (run logs carry their own currents)");
     }
     let Some(motor) = &a.motor else { bail!("--motor is needed: the base profile (preset or TOML) with Km, Nr, J") };
     let Some(out) = &a.out else { bail!("--out is needed: where to write the identified profile (TOML)") };

@@ -118,6 +118,20 @@ impl std::fmt::Display for Headroom {
     }
 }
 
+/// The first whole mA of RMS at or above `peak_a` (A peak): what `M906` takes (Marlin's
+/// `rms_current`, mA).
+fn first_whole_ma_rms(peak_a: f64) -> f64 {
+    (1e3 * peak_a / std::f64::consts::SQRT_2).ceil()
+}
+
+/// The run current to advise for a table that fits from `peak_a` (A peak): the first whole
+/// mA of RMS at or above it, if its peak is within `limit_a`; `None` when the answer lies
+/// within a mA of RMS below the limit and the next whole mA passes it.
+pub fn whole_ma_rms_at_or_above(peak_a: f64, limit_a: f64) -> Result<Option<RunCurrent>, ExportError> {
+    let at = RunCurrent::from_rms(first_whole_ma_rms(peak_a) / 1e3)?;
+    Ok((at.peak_a() <= limit_a).then_some(at))
+}
+
 /// Mill-amperes of RMS [`headroom`] tries above the scan's answer for one whose displayed
 /// values fit too: a few are enough where the wanted shift falls with the current.
 const COPYABLE_TRIES: u32 = 8;
@@ -140,7 +154,7 @@ pub fn headroom(p: &Profile, c: &Correction, fw: Firmware) -> Result<Headroom, E
     let fits_from_a = lowest_fitting_current_a(p, c.holding_current_a, up_to, fw)?;
     let mut h = Headroom { fits_at: None, fits_from_a, searched_up_to };
     let Some(lowest) = fits_from_a else { return Ok(h) };
-    let first_rms_ma = (1e3 * lowest / std::f64::consts::SQRT_2).ceil();
+    let first_rms_ma = first_whole_ma_rms(lowest);
     for rms_ma in (0..COPYABLE_TRIES).map(|k| first_rms_ma + f64::from(k)) {
         let at = RunCurrent::from_rms(rms_ma / 1e3)?;
         let typed = [shown(at.peak_a())?, shown(at.rms_a())? * std::f64::consts::SQRT_2];

@@ -13,9 +13,10 @@
 //! U_n(I) = a_n/I + b_n        (rad; a_n in rad·A, b_n in rad; complex)
 //! ```
 //!
-//! One measured table fixes `a_n = I₀·U_n(I₀)` with `b_n = 0`: the current it gives is a
-//! **lower bound** where the ripple grows with the current. Two, at different currents, fix
-//! both. The model leaves out what else changes with the current (the rotor's load angle, the
+//! One measured table fixes `a_n = I₀·U_n(I₀)` with `b_n = 0`: exact for a detent alone, an
+//! **estimate** otherwise (a part that grows with the current in phase with the detent's
+//! asks for more current, one against it for less). Two, at different currents, fix both.
+//! The model leaves out what else changes with the current (the rotor's load angle, the
 //! magnetic stiffness's effect on the response): a current it gives is where to record again,
 //! not a promise.
 
@@ -97,7 +98,8 @@ impl TableVsCurrent {
         Ok(Self { a, b, firmware: fw, measured_up_to_a })
     }
 
-    /// The table the model predicts at `peak_a` (A peak, > 0).
+    /// The table the model predicts at `peak_a` (A peak; finite and > 0, else its items are
+    /// not numbers: [`Self::fits_at`] checks).
     pub fn table_at(&self, peak_a: f64) -> PrusaCorrection {
         let scale = self.firmware.scale();
         let spectrum = |d: usize| {
@@ -112,8 +114,12 @@ impl TableVsCurrent {
         PrusaCorrection { forward: spectrum(0), backward: spectrum(1), firmware: self.firmware }
     }
 
-    /// Whether the predicted table at `peak_a` fits both directions within ±[`SHIFT_LIMIT`].
+    /// Whether the predicted table at `peak_a` fits both directions within ±[`SHIFT_LIMIT`];
+    /// `false` for a current that is not finite and positive.
     pub fn fits_at(&self, peak_a: f64) -> bool {
+        if !(peak_a.is_finite() && peak_a > 0.0) {
+            return false;
+        }
         let t = self.table_at(peak_a);
         [t.forward, t.backward].iter().all(|s| s.peak_shift(self.firmware).is_some_and(|p| p <= SHIFT_LIMIT))
     }
@@ -202,5 +208,6 @@ mod tests {
         other.table.firmware = Firmware::V6_2;
         assert!(TableVsCurrent::fit(&[ok, other]).is_err());
         assert!(m.lowest_fitting_current_a(0.5).is_err(), "below the measured current");
+        assert!(!m.fits_at(0.0) && !m.fits_at(f64::NAN) && !m.fits_at(-1.0));
     }
 }
