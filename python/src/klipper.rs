@@ -23,9 +23,8 @@ use crate::accel::NAMES;
 
 /// `kinematics` as Python passes it: `"cartesian"` or `"corexy"`.
 pub(crate) fn kinematics_of(name: &str) -> PyResult<Kinematics> {
-    Kinematics::from_name(name).ok_or_else(|| {
-        err(format!("kinematics \"{}\": cartesian or corexy", stepdamp_export::escape::line(name)))
-    })
+    Kinematics::from_name(name)
+        .ok_or_else(|| err(format!("kinematics \"{}\": cartesian or corexy", stepdamp_export::escape::line(name))))
 }
 
 /// The motor of a driver section (`"tmc5160 stepper_x"`), checked as the CLI checks it.
