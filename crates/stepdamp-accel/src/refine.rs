@@ -60,8 +60,9 @@ pub struct Refined {
     pub speed_rev_s: f64,
     /// The baseline's response.
     pub baseline: Response,
-    /// The trial's response.
-    pub trial: Response,
+    /// Where the influence coefficient comes from: this session's trial, or an earlier
+    /// session's group carried to this run current.
+    pub source: InfluenceSource,
     /// The influence coefficient and the shift that cancels the baseline.
     pub influence: Influence,
     /// The item in use, `(mag, pha)`.
@@ -74,6 +75,52 @@ pub struct Refined {
     /// radius of zero (m/s², `|C|·` the cancelling shift's 95 % radius). An expectation to
     /// measure, not a simulation.
     pub expected_residual95: f64,
+}
+
+/// Where a [`Refined`] item's influence coefficient comes from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum InfluenceSource {
+    /// This session's constant trial, with its response.
+    Trial(Response),
+    /// An earlier session's influence of the same harmonic, speed and direction, times the
+    /// ratio `I/I_earlier` of the run currents ([`Earlier`]).
+    Carried {
+        /// `I/I_earlier`.
+        current_ratio: f64,
+    },
+}
+
+/// The largest ratio of run currents (either way) over which [`refine_with`] carries an
+/// influence: the torque per rad of shift is `Km·I·cos λ`, so the coefficient scales with the
+/// current, but the head's response to that torque changes with the rotor's magnetic
+/// stiffness (`∝ I`); over the family of simulated printers the route carried it over 1.0–1.52×
+/// (docs/accelerometer.md#a-family-of-simulated-printers). Past 2× record a trial.
+pub const MAX_CURRENT_RATIO: f64 = 2.0;
+
+/// `now_a/then_a`, the ratio of the run currents (any unit) over which [`refine_with`] carries
+/// an influence; refused (one line) outside `1/`[`MAX_CURRENT_RATIO`]`..=`[`MAX_CURRENT_RATIO`]
+/// or not finite.
+pub fn current_ratio(now_a: f64, then_a: f64) -> Result<f64, InfluenceError> {
+    let r = now_a / then_a;
+    if r.is_finite() && (1.0 / MAX_CURRENT_RATIO..=MAX_CURRENT_RATIO).contains(&r) {
+        return Ok(r);
+    }
+    Err(InfluenceError::Indeterminate(format!(
+        "a run current {r:.4}× the earlier session's ({now_a} against {then_a}): an influence is carried over at \
+         most {MAX_CURRENT_RATIO}× either way; record a trial at this current"
+    )))
+}
+
+/// The steps of an earlier session, whose influence coefficients a group of this session that
+/// has a baseline and no trial takes, in proportion to the current.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Earlier<'a> {
+    /// The earlier session's steps ([`refine`] of its captures; its table in use does not
+    /// matter: the coefficient does not depend on it).
+    pub steps: &'a [Refined],
+    /// `I/I_earlier`: this session's run current over the earlier one's, within
+    /// `1/`[`MAX_CURRENT_RATIO`]`..=`[`MAX_CURRENT_RATIO`].
+    pub current_ratio: f64,
 }
 
 /// The constant trial `(H, F, sign of R, mag, pha)` of an `M973`, or why the capture is not one.
@@ -104,6 +151,26 @@ fn reconstruction(c: &AccelCapture, o: &RefineOptions) -> Result<Reconstruction,
 /// group with two baselines or two trials (an iteration's later steps: not supported yet),
 /// a group without a baseline or without a trial, and a harmonic above 16.
 pub fn refine(captures: &[AccelCapture], o: &RefineOptions, in_use: &InUse) -> Result<Vec<Refined>, InfluenceError> {
+    refine_with(captures, o, in_use, None)
+}
+
+/// [`refine`], where a group with a baseline and no trial takes the influence of the
+/// `earlier` step of the same harmonic, speed and direction, times the ratio of the run
+/// currents: the step at a raised run current without a new trial, or a second step at the
+/// same current (ratio 1) from a baseline recorded with the refined table loaded
+/// (docs/accelerometer.md#a-step-without-a-trial). The cancelling shift's 95 % radius then adds
+/// the baseline's and the carried coefficient's relative radii in quadrature. Refuses a ratio
+/// outside `1/`[`MAX_CURRENT_RATIO`]`..=`[`MAX_CURRENT_RATIO`] or not finite, and a group
+/// without a trial that `earlier` has no step for.
+pub fn refine_with(
+    captures: &[AccelCapture],
+    o: &RefineOptions,
+    in_use: &InUse,
+    earlier: Option<&Earlier<'_>>,
+) -> Result<Vec<Refined>, InfluenceError> {
+    if let Some(e) = earlier {
+        current_ratio(e.current_ratio, 1.0)?;
+    }
     type Key = (u32, u64, i8);
     let mut groups: Vec<(Key, Option<usize>, Option<usize>)> = Vec::new();
     for (i, c) in captures.iter().enumerate() {
@@ -130,17 +197,51 @@ pub fn refine(captures: &[AccelCapture], o: &RefineOptions, in_use: &InUse) -> R
     }
     let mut out = Vec::with_capacity(groups.len());
     for ((n, _, _), base, trial) in groups {
-        let (Some(b), Some(t)) = (base, trial) else {
-            let c = &captures[base.or(trial).unwrap_or(0)];
-            let missing = if base.is_none() { "baseline (C0 D0)" } else { "constant trial" };
-            return Err(InfluenceError::Indeterminate(format!(
-                "{}:{}: harmonic {n} has no {missing} at the same speed and direction",
-                c.source, c.line
-            )));
-        };
-        out.push(refine_pair(&captures[b], &captures[t], o, in_use)?);
+        match (base, trial, earlier) {
+            (Some(b), Some(t), _) => out.push(refine_pair(&captures[b], &captures[t], o, in_use)?),
+            (Some(b), None, Some(e)) => out.push(refine_carried(&captures[b], o, in_use, e)?),
+            _ => {
+                let c = &captures[base.or(trial).unwrap_or(0)];
+                let missing = if base.is_none() { "baseline (C0 D0)" } else { "constant trial" };
+                return Err(InfluenceError::Indeterminate(format!(
+                    "{}:{}: harmonic {n} has no {missing} at the same speed and direction",
+                    c.source, c.line
+                )));
+            }
+        }
     }
     Ok(out)
+}
+
+/// The new item of `base`'s group from the earlier step of its harmonic, speed and direction.
+fn refine_carried(
+    base: &AccelCapture,
+    o: &RefineOptions,
+    in_use: &InUse,
+    earlier: &Earlier<'_>,
+) -> Result<Refined, InfluenceError> {
+    let (n, _, _, _, _) = constant_trial(base)?;
+    let y0 = harmonic_response(base, &reconstruction(base, o)?, n, o.periods_per_block)?;
+    let direction = base.require_gcode()?.phase_direction();
+    let Some(from) = earlier
+        .steps
+        .iter()
+        .find(|s| s.harmonic == n && s.phase_direction == direction && s.speed_rev_s == y0.speed_rev_s)
+    else {
+        return Err(InfluenceError::Indeterminate(format!(
+            "{}:{}: harmonic {n} has no constant trial at the same speed and direction, and the earlier session no \
+             step there to take the influence from",
+            base.source, base.line
+        )));
+    };
+    let ratio = earlier.current_ratio;
+    let c = from.influence.coefficient.scale(ratio);
+    let c_r = from.influence.coefficient_radius95 * ratio;
+    let u = -y0.value / c;
+    let relative = (y0.radius95 / y0.value.abs()).hypot(c_r / c.abs());
+    let u_r = u.abs() * relative;
+    let influence = Influence { coefficient: c, coefficient_radius95: c_r, cancelling: u, cancelling_radius95: u_r };
+    Ok(step(n, direction, y0, InfluenceSource::Carried { current_ratio: ratio }, influence, in_use, o))
 }
 
 /// One group's step.
@@ -155,21 +256,34 @@ fn refine_pair(
     let y1 = harmonic_response(trial, &reconstruction(trial, o)?, n, o.periods_per_block)?;
     let inf = influence(&y0, &y1, table_shift(mag, pha, o.scale))?;
     let direction = base.require_gcode()?.phase_direction();
+    Ok(step(n, direction, y0, InfluenceSource::Trial(y1), inf, in_use, o))
+}
+
+/// The step of harmonic `n` in `direction`: the item in use plus the cancelling shift.
+fn step(
+    n: u32,
+    direction: f64,
+    y0: Response,
+    source: InfluenceSource,
+    inf: Influence,
+    in_use: &InUse,
+    o: &RefineOptions,
+) -> Refined {
     let table = if direction > 0.0 { &in_use.forward } else { &in_use.backward };
     let old = table[n as usize];
     let new: Complex = table_shift(old.0, old.1, o.scale) + inf.cancelling;
-    Ok(Refined {
+    Refined {
         harmonic: n,
         phase_direction: direction,
         speed_rev_s: y0.speed_rev_s,
         baseline: y0,
-        trial: y1,
+        source,
         influence: inf,
         in_use: old,
         item: table_item(new, o.scale),
         item_radius95: inf.cancelling_radius95 / o.scale,
         expected_residual95: inf.coefficient.abs() * inf.cancelling_radius95,
-    })
+    }
 }
 
 #[cfg(test)]
@@ -224,6 +338,73 @@ mod tests {
             assert!(x.item_radius95 < 0.1 * x.item.0, "a tight interval: {x:?}");
             assert_eq!(x.in_use, old);
         }
+    }
+
+    #[test]
+    fn a_baseline_without_a_trial_takes_the_earlier_influence_times_the_current_ratio() {
+        // The earlier session at I: baseline and trial forward. This one at 1.3·I: a baseline
+        // alone, whose true influence is 1.3× the earlier one (the torque per rad ∝ I).
+        let truth = recon(0.0);
+        let c_true = Complex::from_polar(25.0, -0.7);
+        let (mag, pha) = (0.004, 0.5);
+        let y_then = Complex::from_polar(0.9, 2.0);
+        let earlier_caps = vec![
+            synthetic(m973(-12.0, 0.0, 0.0), y_then, 0.2, 1, &truth),
+            synthetic(m973(-12.0, mag, pha), y_then + c_true * table_shift(mag, pha, 4.0), 0.2, 2, &truth),
+        ];
+        let steps = refine(&earlier_caps, &options(), &InUse::default()).unwrap();
+        let y_now = Complex::from_polar(0.5, -1.0);
+        let now = vec![synthetic(m973(-12.0, 0.0, 0.0), y_now, 0.2, 3, &truth)];
+        let mut in_use = InUse::default();
+        in_use.forward[2] = (0.003, 0.2);
+        let earlier = Earlier { steps: &steps, current_ratio: 1.3 };
+        let r = refine_with(&now, &options(), &in_use, Some(&earlier)).unwrap();
+        assert_eq!(r.len(), 1);
+        let x = &r[0];
+        assert_eq!(x.source, InfluenceSource::Carried { current_ratio: 1.3 });
+        assert_eq!(x.influence.coefficient, steps[0].influence.coefficient.scale(1.3));
+        assert_eq!(x.in_use, (0.003, 0.2));
+        // The new item cancels the baseline through the true influence at this current.
+        let want = table_shift(0.003, 0.2, 4.0) - y_now / c_true.scale(1.3);
+        let got = table_shift(x.item.0, x.item.1, 4.0);
+        assert!((got - want).abs() <= 2.0 * 4.0 * x.item_radius95, "{x:?}: want {want:?}");
+        assert!(x.item_radius95 > 0.0 && x.item_radius95 < 0.1 * x.item.0, "{x:?}");
+        // Without `earlier` the lone baseline is refused as before.
+        let e = refine(&now, &options(), &in_use).unwrap_err().to_string();
+        assert!(e.contains("harmonic 2 has no constant trial"), "{e}");
+    }
+
+    #[test]
+    fn a_carried_influence_is_refused_past_twice_the_current_or_without_a_matching_step() {
+        let truth = recon(0.0);
+        let y = Complex::from_polar(0.9, 2.0);
+        let (mag, pha) = (0.004, 0.5);
+        let earlier_caps = vec![
+            synthetic(m973(-12.0, 0.0, 0.0), y, 0.2, 1, &truth),
+            synthetic(
+                m973(-12.0, mag, pha),
+                y + Complex::from_polar(25.0, -0.7) * table_shift(mag, pha, 4.0),
+                0.2,
+                2,
+                &truth,
+            ),
+        ];
+        let steps = refine(&earlier_caps, &options(), &InUse::default()).unwrap();
+        let forward = vec![synthetic(m973(-12.0, 0.0, 0.0), y, 0.2, 3, &truth)];
+        for ratio in [2.01, 0.49, f64::NAN, f64::INFINITY] {
+            let earlier = Earlier { steps: &steps, current_ratio: ratio };
+            let e = refine_with(&forward, &options(), &InUse::default(), Some(&earlier)).unwrap_err().to_string();
+            assert!(e.contains("at most 2× either way"), "{ratio}: {e}");
+        }
+        for ratio in [2.0, 0.5] {
+            let earlier = Earlier { steps: &steps, current_ratio: ratio };
+            assert!(refine_with(&forward, &options(), &InUse::default(), Some(&earlier)).is_ok(), "{ratio}");
+        }
+        // The earlier session measured forward only: a backward baseline has nothing to take.
+        let backward = vec![synthetic(m973(12.0, 0.0, 0.0), y, 0.2, 4, &truth)];
+        let earlier = Earlier { steps: &steps, current_ratio: 1.0 };
+        let e = refine_with(&backward, &options(), &InUse::default(), Some(&earlier)).unwrap_err().to_string();
+        assert!(e.contains("and the earlier session no step there"), "{e}");
     }
 
     #[test]

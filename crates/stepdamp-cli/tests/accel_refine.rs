@@ -181,6 +181,30 @@ fn baseline(text: &str) -> f64 {
     l.split(": baseline ").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap()
 }
 
+/// `patent-motor-real`, the docs' profile.
+const REAL: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/profiles/patent-motor-real.toml");
+/// Harmonic 4's baseline and a trial, at 2 rev/s backward.
+const BASE: &str = "M973 X F2 R10 H4 A0 B0 C0 D0";
+const TRIAL: &str = "M973 X F2 R10 H4 A0 B0 C0.01 D0.01";
+
+/// `gcode` captured by `accel simulate` on [`REAL`] at `current` A peak with `table` in use,
+/// written to `out`; returns the text.
+fn simulated(gcode: &str, current: &str, table: &str, seed: &str, out: &str) -> String {
+    let a = ["accel", "simulate", "--motor", REAL, "--current", current, "--gcode", gcode, "--in-use", table];
+    let o = stepdamp(&[&a[..], &["--echo", "--seed", seed, "--out", out]].concat());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    std::fs::read_to_string(out).unwrap()
+}
+
+/// `accel refine` of `log` on [`REAL`] at `current` A peak with `table` in use, writing `out`,
+/// with `extra` arguments; returns its standard output.
+fn refined(log: &str, current: &str, table: &str, out: &str, extra: &[&str]) -> String {
+    let a = ["accel", "refine", "--log", log, "--motor", REAL, "--in-use", table, "--axis", "X", "--current", current];
+    let o = stepdamp(&[&a[..], extra, &["--out", out]].concat());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    String::from_utf8_lossy(&o.stdout).to_string()
+}
+
 #[test]
 fn simulate_refine_and_simulate_again_cancel_harmonic_4_on_the_simulated_printer() {
     // The route from the command line: the simulated printer's baseline and trial captures,
@@ -188,56 +212,64 @@ fn simulate_refine_and_simulate_again_cancel_harmonic_4_on_the_simulated_printer
     // (measured 23×: 1.473 → 0.0645 m/s²).
     let dir = tempfile::tempdir().unwrap();
     let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
-    let motor = concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/profiles/patent-motor-real.toml");
-    let capture = |gcode: &str, table: &str, seed: &str, out: &str| {
-        let o = stepdamp(&[
-            "accel",
-            "simulate",
-            "--motor",
-            motor,
-            "--current",
-            "0.9",
-            "--gcode",
-            gcode,
-            "--in-use",
-            table,
-            "--echo",
-            "--seed",
-            seed,
-            "--out",
-            out,
-        ]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        std::fs::read_to_string(out).unwrap()
+    let session = |text: String| {
+        std::fs::write(p("session.log"), text).unwrap();
+        p("session.log")
     };
-    let refine = |session: &str, table: &str, out: &str| {
-        let log = p("session.log");
-        std::fs::write(&log, session).unwrap();
-        let o = stepdamp(&[
-            "accel",
-            "refine",
-            "--log",
-            &log,
-            "--motor",
-            motor,
-            "--in-use",
-            table,
-            "--axis",
-            "X",
-            "--current",
-            "0.9",
-            "--out",
-            out,
-        ]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        String::from_utf8_lossy(&o.stdout).to_string()
-    };
-    let (base, trial) = ("M973 X F2 R10 H4 A0 B0 C0 D0", "M973 X F2 R10 H4 A0 B0 C0.01 D0.01");
-    let first = capture(base, "none", "1", &p("b.txt")) + &capture(trial, "none", "2", &p("t.txt"));
-    let before = baseline(&refine(&first, "none", &p("new.gcode")));
-    let second =
-        capture(base, &p("new.gcode"), "3", &p("b2.txt")) + &capture(trial, &p("new.gcode"), "4", &p("t2.txt"));
-    let after = baseline(&refine(&second, &p("new.gcode"), &p("new2.gcode")));
+    let first = simulated(BASE, "0.9", "none", "1", &p("b.txt")) + &simulated(TRIAL, "0.9", "none", "2", &p("t.txt"));
+    let before = baseline(&refined(&session(first), "0.9", "none", &p("new.gcode"), &[]));
+    let new = p("new.gcode");
+    let second = simulated(BASE, "0.9", &new, "3", &p("b2.txt")) + &simulated(TRIAL, "0.9", &new, "4", &p("t2.txt"));
+    let after = baseline(&refined(&session(second), "0.9", &new, &p("new2.gcode"), &[]));
     eprintln!("harmonic 4: {before} -> {after} m/s² ({:.1}x)", before / after);
     assert!(before / after >= 10.0, "{before} -> {after}");
+}
+
+#[test]
+fn a_second_step_without_a_trial_takes_the_first_sessions_influence_and_lowers_the_residual() {
+    // docs/accelerometer.md#a-step-without-a-trial: the first session (baseline and trial)
+    // refined; the baseline alone again with that table loaded, refined with the first
+    // session's influence: harmonic 4 must fall at least 3× further (measured at 0.44 A:
+    // 1.15 → 0.112 → 0.0218 m/s², 20.2 then 34.4 dB), with no second trial.
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
+    let (current, new) = ("0.44", p("new.gcode"));
+    let first =
+        simulated(BASE, current, "none", "3", &p("b.txt")) + &simulated(TRIAL, current, "none", "4", &p("t.txt"));
+    std::fs::write(p("session.log"), first).unwrap();
+    let start = baseline(&refined(&p("session.log"), current, "none", &new, &[]));
+    simulated(BASE, current, &new, "5", &p("b2.txt"));
+    let carried = ["--influence-from", &p("session.log"), "--influence-current", current];
+    let text = refined(&p("b2.txt"), current, &new, &p("new2.gcode"), &carried);
+    assert!(text.contains("no trial: the earlier session's influence ×1.0000"), "{text}");
+    let first_step = baseline(&text);
+    simulated(BASE, current, &p("new2.gcode"), "7", &p("b3.txt"));
+    let second_step = baseline(&refined(&p("b3.txt"), current, &p("new2.gcode"), &p("new3.gcode"), &carried));
+    eprintln!("harmonic 4: {start} -> {first_step} -> {second_step} m/s²");
+    assert!(start / first_step >= 5.0, "the first step: {start} -> {first_step}");
+    assert!(first_step / second_step >= 3.0, "the step without a trial: {first_step} -> {second_step}");
+}
+
+#[test]
+fn an_influence_from_another_session_needs_its_current_and_a_matching_step() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
+    let (backward, forward, out) = (p("b.txt"), p("f.txt"), p("x.gcode"));
+    std::fs::write(&backward, capture_text(m973(8.0, 0.0, 0.0), (0.5, 0.1))).unwrap();
+    std::fs::write(&forward, capture_text(m973(-8.0, 0.0, 0.0), (0.5, 0.1))).unwrap();
+    let a = ["accel", "refine", "--log", &backward, "--motor", "patent-motor", "--in-use", "none", "--axis", "X"];
+    let a = [&a[..], &["--current", "0.6", "--out", &out]].concat();
+    for (extra, needle) in [
+        (vec!["--influence-from", &backward], "--influence-from needs the run current that session was recorded at"),
+        (vec!["--influence-current", "0.5"], "--influence-current(-rms) without --influence-from"),
+        (vec!["--influence-from", &backward, "--influence-current", "0.2"], "at most 2× either way"),
+        (vec!["--influence-from", &backward, "--influence-current", "-1"], "-1"),
+        // The earlier session must have its own trial: a baseline alone gives no influence.
+        (vec!["--influence-from", &forward, "--influence-current", "0.5"], "has no constant trial"),
+    ] {
+        let o = stepdamp(&[&a[..], &extra[..]].concat());
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains(needle) && err.lines().count() == 1, "{extra:?}: {err}");
+        assert!(!std::path::Path::new(&out).exists(), "nothing written on an error");
+    }
 }

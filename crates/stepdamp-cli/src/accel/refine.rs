@@ -6,7 +6,9 @@ use crate::common::{load_motor, write_atomic};
 use crate::export::CurrentArgs;
 use anyhow::{Result, bail};
 use std::path::PathBuf;
-use stepdamp_accel::refine::{InUse, RefineOptions, Refined, TABLE_ITEMS, Timing, refine};
+use stepdamp_accel::refine::{
+    Earlier, InUse, InfluenceSource, RefineOptions, Refined, TABLE_ITEMS, Timing, current_ratio, refine, refine_with,
+};
 use stepdamp_export::prusa::headroom::whole_ma_rms_at_or_above;
 use stepdamp_export::prusa::measured::{MeasuredTable, TableVsCurrent};
 use stepdamp_export::prusa::{self, Firmware, Fitted, PrusaCorrection, Spectrum, gcode};
@@ -52,9 +54,37 @@ pub struct RefineArgs {
     /// The run current the captures were recorded at (the table is valid there).
     #[command(flatten)]
     current: CurrentArgs,
+    /// An earlier session's log (its baselines and trials; repeat for several): a harmonic
+    /// this session recorded without a trial takes that session's influence at the same speed
+    /// and direction, times the ratio of the run currents (a raised current, or a second step
+    /// with the refined table loaded; docs/accelerometer.md#a-step-without-a-trial).
+    #[arg(long = "influence-from", value_name = "FILE")]
+    influence_from: Vec<PathBuf>,
+    /// The run current of the --influence-from session, as a PEAK of the current vector, A.
+    #[arg(long, value_name = "A", conflicts_with = "influence_current_rms")]
+    influence_current: Option<f64>,
+    /// The run current of the --influence-from session, as the RMS of each phase's current, A.
+    #[arg(long, value_name = "A")]
+    influence_current_rms: Option<f64>,
     /// Where to write the new table's G-code.
     #[arg(long)]
     out: PathBuf,
+}
+
+impl RefineArgs {
+    /// The earlier session's run current, when --influence-from is given (then it is needed).
+    fn earlier_current(&self) -> Result<Option<stepdamp_export::RunCurrent>> {
+        let given = CurrentArgs { current: self.influence_current, current_rms: self.influence_current_rms };
+        match (self.influence_from.is_empty(), given.given()) {
+            (true, false) => Ok(None),
+            (true, true) => bail!("--influence-current(-rms) without --influence-from: whose current is it?"),
+            (false, false) => bail!(
+                "--influence-from needs the run current that session was recorded at: --influence-current A (peak) \
+                 or --influence-current-rms A (RMS per phase)"
+            ),
+            (false, true) => Ok(Some(given.run_current()?)),
+        }
+    }
 }
 
 /// Runs `stepdamp accel refine`.
@@ -64,6 +94,7 @@ pub(super) fn run_refine(a: RefineArgs) -> Result<()> {
         bail!("--mm-per-rev {:e}: must be in 1..=1000 mm", a.mm_per_rev);
     }
     let run = a.current.run_current()?;
+    let earlier_run = a.earlier_current()?;
     let motor = load_motor(&a.motor)?;
     let captures = super::read_captures(&a.logs, axis)?;
     let old = super::table_in_use(&a.in_use, letter)?;
@@ -89,7 +120,20 @@ pub(super) fn run_refine(a: RefineArgs) -> Result<()> {
         a.mm_per_rev,
         o.periods_per_rev
     );
-    let refined = refine(&captures, &o, &old_items)?;
+    let refined = match earlier_run {
+        None => refine(&captures, &o, &old_items)?,
+        Some(then) => {
+            let current_ratio = current_ratio(run.peak_a(), then.peak_a())?;
+            let earlier_captures = super::read_captures(&a.influence_from, axis)?;
+            // The coefficients do not depend on the table that was in use then.
+            let steps = refine(&earlier_captures, &o, &InUse::default())?;
+            outln!(
+                "earlier session: {} captures at {then}; its influences carried ×{current_ratio:.4} to {run}",
+                earlier_captures.len()
+            );
+            refine_with(&captures, &o, &old_items, Some(&Earlier { steps: &steps, current_ratio }))?
+        }
+    };
     let mut new = old;
     for r in &refined {
         print_refined(r)?;
@@ -161,15 +205,19 @@ fn write_table(
 
 fn print_refined(r: &Refined) -> Result<()> {
     let dir = if r.phase_direction > 0.0 { "forward" } else { "backward" };
-    let (b, t, i) = (&r.baseline, &r.trial, &r.influence);
+    let (b, i) = (&r.baseline, &r.influence);
+    let how = match r.source {
+        InfluenceSource::Trial(t) => format!("with the trial {:.4} ± {:.4} m/s²", t.value.abs(), t.radius95),
+        InfluenceSource::Carried { current_ratio } => {
+            format!("no trial: the earlier session's influence ×{current_ratio:.4}")
+        }
+    };
     outln!(
-        "harmonic {:>2} {dir:<8} at {:+.2} rev/s: baseline {:.4} ± {:.4} m/s², with the trial {:.4} ± {:.4} m/s²",
+        "harmonic {:>2} {dir:<8} at {:+.2} rev/s: baseline {:.4} ± {:.4} m/s², {how}",
         r.harmonic,
         r.speed_rev_s,
         b.value.abs(),
         b.radius95,
-        t.value.abs(),
-        t.radius95
     );
     outln!(
         "  influence {:.3e} ± {:.1e} m/s² per rad; item ({:.5}, {:+.4}) -> ({:.5} ± {:.5}, {:+.4}); expected residual within {:.4} m/s²",
