@@ -29,7 +29,7 @@ use stepdamp_export::prusa::Firmware;
 type TrialArg = (u32, f64, f64);
 
 /// `X` or `Y` (either case): the motor the captures moved (on CoreXY the A or B motor).
-fn axis_of(s: &str) -> PyResult<Axis> {
+pub(crate) fn axis_of(s: &str) -> PyResult<Axis> {
     match s {
         "X" | "x" => Ok(Axis::X),
         "Y" | "y" => Ok(Axis::Y),
@@ -232,7 +232,7 @@ pub fn read_accel_captures<'py>(
 }
 
 /// The run current from the one of `current_peak_a`, `current_rms_a` given.
-fn run_current(peak: Option<f64>, rms: Option<f64>) -> PyResult<RunCurrent> {
+pub(crate) fn run_current(peak: Option<f64>, rms: Option<f64>) -> PyResult<RunCurrent> {
     match (peak, rms) {
         // The library's check, the message in Python's names (the library names the CLI's options).
         (Some(p), None) => {
@@ -326,6 +326,16 @@ pub(crate) enum PathsArg {
     Many(Vec<PathBuf>),
 }
 
+impl PathsArg {
+    /// The paths, in order.
+    pub(crate) fn into_vec(self) -> Vec<PathBuf> {
+        match self {
+            PathsArg::One(p) => vec![p],
+            PathsArg::Many(v) => v,
+        }
+    }
+}
+
 /// The head and the motor's ripple in N·m per direction from accelerometer captures (the
 /// CLI's `stepdamp identify --accel`; docs/accelerometer.md#identifying-the-ripple-from-captures).
 ///
@@ -369,10 +379,7 @@ pub fn identify_accel<'py>(
     orders: Option<Vec<u32>>,
     kinematics: Option<&str>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let paths = match paths {
-        PathsArg::One(p) => vec![p],
-        PathsArg::Many(v) => v,
-    };
+    let paths = paths.into_vec();
     let klipper_trials: Vec<(PathBuf, TrialShift)> =
         klipper_trials.unwrap_or_default().into_iter().map(|(p, t)| (p, trial_shift(t))).collect();
     let axis = axis_of(axis)?;

@@ -157,10 +157,7 @@ pub fn klipper_refine<'py>(
     in_use: Option<PathBuf>,
     periods_per_block: u32,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let paths = match paths {
-        PathsArg::One(p) => vec![p],
-        PathsArg::Many(v) => v,
-    };
+    let paths = paths.into_vec();
     let motor_axis = motor_of(axis)?;
     let trials: Vec<(PathBuf, TrialShift)> = klipper_trials
         .into_iter()

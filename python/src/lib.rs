@@ -9,6 +9,7 @@ mod cancel;
 mod ident;
 mod klipper;
 mod profile;
+mod prusa;
 mod sim;
 mod study;
 
@@ -53,6 +54,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(ident::identify, m)?)?;
     m.add_function(wrap_pyfunction!(accel::read_accel_captures, m)?)?;
     m.add_function(wrap_pyfunction!(accel::identify_accel, m)?)?;
+    m.add_function(wrap_pyfunction!(prusa::prusa_refine, m)?)?;
     m.add_function(wrap_pyfunction!(klipper::klipper_plan, m)?)?;
     m.add_function(wrap_pyfunction!(klipper::klipper_trial_table, m)?)?;
     m.add_function(wrap_pyfunction!(klipper::klipper_refine, m)?)?;

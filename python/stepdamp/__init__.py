@@ -30,6 +30,7 @@ from ._native import (
     klipper_plan,
     klipper_refine,
     klipper_trial_table,
+    prusa_refine,
     read_accel_captures,
 )
 
@@ -47,6 +48,7 @@ __all__ = [
     "klipper_trial_table",
     "linear_grid",
     "load_spec",
+    "prusa_refine",
     "read_accel_captures",
     "resonance",
     "ripple",

@@ -5,6 +5,7 @@ import numpy as np
 
 from ._native import MAX_POINTS as MAX_POINTS, PRESETS as PRESETS, Profile as Profile, StepdampError as StepdampError
 from ._native import identify_accel as identify_accel, read_accel_captures as read_accel_captures
+from ._native import prusa_refine as prusa_refine
 from .studies import StudyResult as StudyResult, load_spec as load_spec, study as study
 
 class SweepSummary(Dict[str, Any]):

@@ -172,6 +172,24 @@ def klipper_refine(
     """One influence step on a Trinamic table from Klipper logs, as the CLI's accel
     klipper-refine: the shifts (rad), "pairs", "table", "text" (the report) and "block" (the file)."""
     ...
+def prusa_refine(
+    paths: Union[str, PathLike[str], Sequence[Union[str, PathLike[str]]]],
+    motor: Profile,
+    axis: str,
+    *,
+    current_peak_a: Optional[float] = None,
+    current_rms_a: Optional[float] = None,
+    in_use: Optional[Union[str, PathLike[str]]] = None,
+    influence_from: Optional[Union[str, PathLike[str], Sequence[Union[str, PathLike[str]]]]] = None,
+    influence_current_peak_a: Optional[float] = None,
+    influence_current_rms_a: Optional[float] = None,
+    mm_per_rev: float = 32.0,
+    periods_per_block: int = 20,
+    timing: str = "planned",
+) -> Dict[str, Any]:
+    """One influence step on Prusa's M971 table from M973 captures, as the CLI's accel refine:
+    "steps" (per harmonic and direction), "text" (the report) and "gcode" (the file)."""
+    ...
 def study_load(path: Union[str, PathLike[str]]) -> str: ...
 def study_from_toml(text: str, origin: str = "<string>", base_dir: str = ".") -> str: ...
 def study_info(json: str) -> Tuple[int, List[str]]: ...

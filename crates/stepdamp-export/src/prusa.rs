@@ -20,6 +20,7 @@ pub mod gcode;
 pub mod headroom;
 pub mod measured;
 pub mod read;
+pub mod refine;
 
 pub use read::{parse_bytes, parse_m971, parse_m972, parse_m973, parse_text};
 

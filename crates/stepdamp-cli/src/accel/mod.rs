@@ -9,12 +9,12 @@ mod simulate;
 mod simulate_klipper;
 
 use crate::Global;
-use anyhow::{Context, Result, anyhow, bail};
+use anyhow::{Result, anyhow, bail};
 use std::path::PathBuf;
 use stepdamp_accel::klipper::TrialShift;
 use stepdamp_accel::{AccelCapture, Axis};
 use stepdamp_export::escape;
-use stepdamp_export::prusa::{self, Firmware, PrusaCorrection, Spectrum};
+use stepdamp_export::prusa::{self, PrusaCorrection};
 use stepdamp_export::tmc::TmcRegisters;
 
 /// `stepdamp accel …`.
@@ -56,21 +56,8 @@ pub fn run(c: AccelCommand, _g: &Global) -> Result<()> {
 /// `axis` (what `export prusa` or `accel refine` wrote, or the printer's M972 read-back),
 /// read bounded.
 fn table_in_use(arg: &str, axis: char) -> Result<PrusaCorrection> {
-    if arg == "none" {
-        let zero = Spectrum::default();
-        return Ok(PrusaCorrection { forward: zero, backward: zero, firmware: Firmware::V6_3_1 });
-    }
-    let path = PathBuf::from(arg);
-    let bytes = prusa::read::read_capped(&path)?;
-    let text = String::from_utf8(bytes).with_context(|| format!("{}: not UTF-8 text", escape::line(arg)))?;
-    let (c, _) = prusa::parse_text(&text, Some(axis), arg)?;
-    if c.firmware != Firmware::V6_3_1 {
-        bail!(
-            "{}: an M973 (6.2) table; the captures need firmware >= 6.3.1, whose table is M971 lines",
-            escape::line(arg)
-        );
-    }
-    Ok(c)
+    let path = (arg != "none").then(|| std::path::Path::new(arg));
+    Ok(prusa::refine::table_in_use(path, axis)?)
 }
 
 /// The printer's kinematics (Klipper's `printer.kinematics`; a Prusa MK4 is cartesian, the

@@ -6,12 +6,9 @@ use crate::common::{load_motor, write_atomic};
 use crate::export::CurrentArgs;
 use anyhow::{Result, bail};
 use std::path::PathBuf;
-use stepdamp_accel::refine::{
-    Earlier, InUse, InfluenceSource, RefineOptions, Refined, TABLE_ITEMS, Timing, current_ratio, refine, refine_with,
-};
-use stepdamp_export::prusa::headroom::whole_ma_rms_at_or_above;
-use stepdamp_export::prusa::measured::{MeasuredTable, TableVsCurrent};
-use stepdamp_export::prusa::{self, Firmware, Fitted, PrusaCorrection, Spectrum, gcode};
+use stepdamp_accel::refine::{RefineOptions, TABLE_ITEMS, Timing, current_ratio};
+use stepdamp_export::prusa::Firmware;
+use stepdamp_export::prusa::refine::{Request, Session, prusa_refine};
 
 /// How the time of each capture's first sample is found.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -97,8 +94,16 @@ pub(super) fn run_refine(a: RefineArgs) -> Result<()> {
     let earlier_run = a.earlier_current()?;
     let motor = load_motor(&a.motor)?;
     let captures = super::read_captures(&a.logs, axis)?;
-    let old = super::table_in_use(&a.in_use, letter)?;
-    let o = RefineOptions {
+    let in_use = super::table_in_use(&a.in_use, letter)?;
+    let earlier_captures = match earlier_run {
+        Some(then) => {
+            // Checked before the earlier logs are read: a wrong current is the likelier mistake.
+            current_ratio(run.peak_a(), then.peak_a())?;
+            super::read_captures(&a.influence_from, axis)?
+        }
+        None => Vec::new(),
+    };
+    let options = RefineOptions {
         periods_per_rev: u32::from(motor.motor.pole_pairs),
         mm_per_rev: a.mm_per_rev,
         periods_per_block: a.periods_per_block,
@@ -108,8 +113,6 @@ pub(super) fn run_refine(a: RefineArgs) -> Result<()> {
             TimingArg::Planned => Timing::Planned,
         },
     };
-    let spectra = |s: &Spectrum| std::array::from_fn(|n| (f64::from(s.mag[n]), f64::from(s.pha[n])));
-    let old_items = InUse { forward: spectra(&old.forward), backward: spectra(&old.backward) };
     outln!(
         "{} captures; first-sample time {}; belt {} mm/rev; {} electrical periods per revolution",
         captures.len(),
@@ -118,117 +121,21 @@ pub(super) fn run_refine(a: RefineArgs) -> Result<()> {
             TimingArg::Markers => "from each capture's markers",
         },
         a.mm_per_rev,
-        o.periods_per_rev
+        options.periods_per_rev
     );
-    let refined = match earlier_run {
-        None => refine(&captures, &o, &old_items)?,
-        Some(then) => {
-            let current_ratio = current_ratio(run.peak_a(), then.peak_a())?;
-            let earlier_captures = super::read_captures(&a.influence_from, axis)?;
-            // The coefficients do not depend on the table that was in use then.
-            let steps = refine(&earlier_captures, &o, &InUse::default())?;
-            outln!(
-                "earlier session: {} captures at {then}; its influences carried ×{current_ratio:.4} to {run}",
-                earlier_captures.len()
-            );
-            refine_with(&captures, &o, &old_items, Some(&Earlier { steps: &steps, current_ratio }))?
-        }
+    let request = Request {
+        options,
+        in_use,
+        now: Session { captures: &captures, run },
+        earlier: earlier_run.map(|run| Session { captures: &earlier_captures, run }),
+        axis: letter,
+        profile_name: &motor.name,
+        current_limit_a: motor.drive.current_limit_a,
     };
-    let mut new = old;
-    for r in &refined {
-        print_refined(r)?;
-        let s = if r.phase_direction > 0.0 { &mut new.forward } else { &mut new.backward };
-        let n = r.harmonic as usize;
-        s.mag[n] = gcode::quantize(r.item.0, gcode::MAG_DECIMALS);
-        s.pha[n] = gcode::quantize(r.item.1, gcode::PHA_DECIMALS);
-    }
-    let text = write_table(&new, letter, &motor.name, run, motor.drive.current_limit_a)?;
-    write_atomic(&a.out, text.as_bytes())?;
+    let refined = prusa_refine(&request)?;
+    out!("{refined}");
+    write_atomic(&a.out, refined.gcode(&request)?.as_bytes())?;
     outln!("not simulated: a measured correction, valid at {run}; record the baselines again with it to confirm");
     outln!("wrote {} (M970 {letter}0, M971 {letter} F|B x{TABLE_ITEMS}, M970 {letter}1)", a.out.display());
-    Ok(())
-}
-
-/// The G-code of `c`, refused when its table would not fit the firmware's int8 shifts, with
-/// the run current at which it would (`stepdamp_export::prusa::measured`, from this one
-/// table: exact for a detent, an estimate where the ripple grows with the current) up to
-/// `limit_a`.
-fn write_table(
-    c: &PrusaCorrection,
-    axis: char,
-    name: &str,
-    run: stepdamp_export::RunCurrent,
-    limit_a: f64,
-) -> Result<String> {
-    let peaks = [c.forward, c.backward].map(|s| s.peak_shift(c.firmware));
-    let peak = peaks.iter().try_fold(0, |m, p| p.map(|p| p.max(m)));
-    let Some(peak) = peak.filter(|&p| p <= prusa::SHIFT_LIMIT) else {
-        let needs = match peak {
-            Some(p) => format!("needs a shift of {p} of 4096"),
-            None => "overflows the firmware's 32-bit sum".to_string(),
-        };
-        let measured = MeasuredTable { peak_a: run.peak_a(), table: *c };
-        let up_to = limit_a.max(run.peak_a());
-        let limit = "the profile's drive.current_limit_a, or the run current where that is higher";
-        let advice = match TableVsCurrent::fit(&[measured])?.lowest_fitting_current_a(up_to)? {
-            Some(from) => match whole_ma_rms_at_or_above(from, up_to)? {
-                Some(at) => format!(
-                    "with a shift that falls as 1/I (a detent's: exact for one; the part of the ripple that grows with \
-                     the current moves it either way) the table would fit from {at} (`M906 {axis}{:.0}`, in mA RMS): \
-                     record the plan again at that current (whether the motor may run that hot is yours to check) and \
-                     refine from those captures",
-                    1e3 * at.rms_a()
-                ),
-                None => format!(
-                    "with a shift that falls as 1/I it would fit from {from:.4} A peak, but no whole mA of RMS from \
-                     there is within {up_to:.3} A peak ({limit})"
-                ),
-            },
-            None => {
-                format!("no run current up to {up_to:.3} A peak ({limit}) makes it fit with a shift that falls as 1/I")
-            }
-        };
-        bail!(
-            "the refined table {needs} at {run}, past Prusa's int8 shifts (±{} of 4096, ±0.195 rad): the ripple is \
-             too large for the table at this run current; {advice} (docs/accelerometer.md#when-the-table-is-too-small)",
-            prusa::SHIFT_LIMIT
-        );
-    };
-    let fitted = Fitted { correction: *c, kept: 1.0, peak_shift: peak, wanted_peak_shift: peak as f64 };
-    let text = gcode::write(&fitted, axis, &gcode::Header { profile: name, current: run })?;
-    let (back, _) = prusa::parse_text(&text, Some(axis), "the refined G-code")?;
-    if back != *c {
-        bail!("internal: the refined G-code reads back to another table");
-    }
-    Ok(text)
-}
-
-fn print_refined(r: &Refined) -> Result<()> {
-    let dir = if r.phase_direction > 0.0 { "forward" } else { "backward" };
-    let (b, i) = (&r.baseline, &r.influence);
-    let how = match r.source {
-        InfluenceSource::Trial(t) => format!("with the trial {:.4} ± {:.4} m/s²", t.value.abs(), t.radius95),
-        InfluenceSource::Carried { current_ratio } => {
-            format!("no trial: the earlier session's influence ×{current_ratio:.4}")
-        }
-    };
-    outln!(
-        "harmonic {:>2} {dir:<8} at {:+.2} rev/s: baseline {:.4} ± {:.4} m/s², {how}",
-        r.harmonic,
-        r.speed_rev_s,
-        b.value.abs(),
-        b.radius95,
-    );
-    outln!(
-        "  influence {:.3e} ± {:.1e} m/s² per rad; item ({:.5}, {:+.4}) -> ({:.5} ± {:.5}, {:+.4}); expected residual within {:.4} m/s²",
-        i.coefficient.abs(),
-        i.coefficient_radius95,
-        r.in_use.0,
-        r.in_use.1,
-        r.item.0,
-        r.item_radius95,
-        r.item.1,
-        r.expected_residual95
-    );
     Ok(())
 }
