@@ -233,17 +233,27 @@ pub fn read_accel_captures<'py>(
 
 /// The run current from the one of `current_peak_a`, `current_rms_a` given.
 pub(crate) fn run_current(peak: Option<f64>, rms: Option<f64>) -> PyResult<RunCurrent> {
+    run_current_named(peak, rms, ("current_peak_a", "current_rms_a"))
+}
+
+/// [`run_current`] with the two arguments' Python names.
+pub(crate) fn run_current_named(
+    peak: Option<f64>,
+    rms: Option<f64>,
+    (peak_name, rms_name): (&str, &str),
+) -> PyResult<RunCurrent> {
     match (peak, rms) {
         // The library's check, the message in Python's names (the library names the CLI's options).
         (Some(p), None) => {
-            RunCurrent::from_peak(p).map_err(|_| err(format!("current_peak_a {p}: must be finite and > 0 A")))
+            RunCurrent::from_peak(p).map_err(|_| err(format!("{peak_name} {p}: must be finite and > 0 A")))
         }
         (None, Some(r)) => {
-            RunCurrent::from_rms(r).map_err(|_| err(format!("current_rms_a {r}: must be finite and > 0 A")))
+            RunCurrent::from_rms(r).map_err(|_| err(format!("{rms_name} {r}: must be finite and > 0 A")))
         }
-        _ => Err(err(
-            "the run current is needed: current_peak_a (peak, the current vector) or current_rms_a (RMS per phase), one of the two",
-        )),
+        (Some(_), Some(_)) => Err(err(format!("{peak_name} and {rms_name}: one of the two, not both"))),
+        (None, None) => Err(err(format!(
+            "the run current is needed: {peak_name} (peak, the current vector) or {rms_name} (RMS per phase), one of the two"
+        ))),
     }
 }
 

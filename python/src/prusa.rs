@@ -2,7 +2,7 @@
 //! one influence step on Prusa's `M971` table from `M973` captures, through the same library
 //! call (`stepdamp_export::prusa::refine::prusa_refine`). Translation only.
 
-use crate::accel::{NAMES, PathsArg, axis_of, run_current};
+use crate::accel::{NAMES, PathsArg, axis_of, run_current, run_current_named};
 use crate::cancel::interruptible;
 use crate::err;
 use crate::profile::PyProfile;
@@ -87,9 +87,8 @@ pub fn prusa_refine<'py>(
             return Err(err("influence_current_peak_a/_rms_a without influence_from: whose current is it?"));
         }
         (Some(p), _) => {
-            let then = run_current(influence_current_peak_a, influence_current_rms_a)
-                .map_err(|e| err(format!("influence_from needs its run current: {e}")))?;
-            Some((p.into_vec(), then))
+            let names = ("influence_current_peak_a", "influence_current_rms_a");
+            Some((p.into_vec(), run_current_named(influence_current_peak_a, influence_current_rms_a, names)?))
         }
     };
     if !(mm_per_rev.is_finite() && (1.0..=1000.0).contains(&mm_per_rev)) {

@@ -65,7 +65,10 @@ def test_prusa_refine_refuses_what_the_cli_refuses_naming_pythons_arguments(cli,
     session, motor = _session(cli, tmp_path), Profile.load(REAL)
     for kwargs, needle in [
         ({"influence_current_peak_a": 0.9}, "without influence_from"),
-        ({"influence_from": session}, "influence_from needs its run current"),
+        ({"influence_from": session}, "the run current is needed: influence_current_peak_a"),
+        ({"influence_from": session, "influence_current_peak_a": -1.0}, "influence_current_peak_a -1"),
+        ({"influence_from": session, "influence_current_peak_a": 0.9, "influence_current_rms_a": 0.6},
+         "one of the two, not both"),
         ({"influence_from": session, "influence_current_peak_a": 0.3}, "at most 2× either way"),
         ({"timing": "sometimes"}, 'timing "sometimes"'),
         ({"mm_per_rev": math.nan}, "mm_per_rev NaN"),

@@ -106,8 +106,8 @@ pub fn current_ratio(now_a: f64, then_a: f64) -> Result<f64, InfluenceError> {
         return Ok(r);
     }
     Err(InfluenceError::Indeterminate(format!(
-        "a run current {r:.4}× the earlier session's ({now_a} against {then_a}): an influence is carried over at \
-         most {MAX_CURRENT_RATIO}× either way; record a trial at this current"
+        "a run current {r:.4e}× the earlier session's ({now_a:.4e} A against {then_a:.4e} A, peak): an influence \
+         is carried over at most {MAX_CURRENT_RATIO}× either way; record a trial at this current"
     )))
 }
 
@@ -159,7 +159,9 @@ pub fn refine(captures: &[AccelCapture], o: &RefineOptions, in_use: &InUse) -> R
 /// currents: the step at a raised run current without a new trial, or a second step at the
 /// same current (ratio 1) from a baseline recorded with the refined table loaded
 /// (docs/accelerometer.md#a-step-without-a-trial). The cancelling shift's 95 % radius then adds
-/// the baseline's and the carried coefficient's relative radii in quadrature. Refuses a ratio
+/// the baseline's and the carried coefficient's radii in quadrature, to first order; it leaves
+/// out the error of carrying in proportion to the current (the head's response to the torque
+/// changes with the rotor's stiffness too), so past a ratio of 1 it is a lower bound. Refuses a ratio
 /// outside `1/`[`MAX_CURRENT_RATIO`]`..=`[`MAX_CURRENT_RATIO`] or not finite, and a group
 /// without a trial that `earlier` has no step for.
 pub fn refine_with(
@@ -238,8 +240,8 @@ fn refine_carried(
     let c = from.influence.coefficient.scale(ratio);
     let c_r = from.influence.coefficient_radius95 * ratio;
     let u = -y0.value / c;
-    let relative = (y0.radius95 / y0.value.abs()).hypot(c_r / c.abs());
-    let u_r = u.abs() * relative;
+    // δU* = −δY₀/C + (Y₀/C²)·δC to first order, the two discs in quadrature (finite for Y₀ = 0).
+    let u_r = y0.radius95.hypot(u.abs() * c_r) / c.abs();
     let influence = Influence { coefficient: c, coefficient_radius95: c_r, cancelling: u, cancelling_radius95: u_r };
     Ok(step(n, direction, y0, InfluenceSource::Carried { current_ratio: ratio }, influence, in_use, o))
 }

@@ -230,7 +230,7 @@ fn a_second_step_without_a_trial_takes_the_first_sessions_influence_and_lowers_t
     // docs/accelerometer.md#a-step-without-a-trial: the first session (baseline and trial)
     // refined; the baseline alone again with that table loaded, refined with the first
     // session's influence: harmonic 4 must fall at least 3× further (measured at 0.44 A:
-    // 1.15 → 0.112 → 0.0218 m/s², 20.2 then 34.4 dB), with no second trial.
+    // 1.15 → 0.112 → 0.0188 m/s², 20.2 then 35.7 dB), with no second trial.
     let dir = tempfile::tempdir().unwrap();
     let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
     let (current, new) = ("0.44", p("new.gcode"));
@@ -263,7 +263,8 @@ fn an_influence_from_another_session_needs_its_current_and_a_matching_step() {
         (vec!["--influence-from", &backward], "--influence-from needs the run current that session was recorded at"),
         (vec!["--influence-current", "0.5"], "--influence-current(-rms) without --influence-from"),
         (vec!["--influence-from", &backward, "--influence-current", "0.2"], "at most 2× either way"),
-        (vec!["--influence-from", &backward, "--influence-current", "-1"], "-1"),
+        (vec!["--influence-from", &backward, "--influence-current=-1"], "--influence-current (peak) -1e0 A: must be"),
+        (vec!["--influence-from", &backward, "--influence-current-rms=0"], "--influence-current-rms 0e0 A: must be"),
         // The earlier session must have its own trial: a baseline alone gives no influence.
         (vec!["--influence-from", &forward, "--influence-current", "0.5"], "has no constant trial"),
     ] {

@@ -26,7 +26,9 @@
 //!    baseline, the correction through the influence the last current measured
 //!    (`Route::best_influence`) times the ratio of the currents ([`steps::carried_step`]),
 //!    then the Newton step with the secant through the two. So every harmonic and direction
-//!    takes at most [`MAX_TRIALS`] trial settings over every current (asserted).
+//!    takes at most [`MAX_TRIALS`] trial settings over every current (asserted), as long as
+//!    its speed stays the one of the earlier current: where clipping moves it, the influence
+//!    there is not the one measured, and the route takes a new trial (none of the 30 did).
 //!
 //! The score compares the planned baseline with no correction and with the final table, at
 //! the current the route ends at, each measured with fresh noise seeds (captures the route
@@ -241,11 +243,11 @@ fn printer_score(seed: u64) -> Outcome {
     let mut measured: Vec<MeasuredTable> = Vec::new();
     let mut at = route_at(&mut text, seed, printer.clone(), seed * 1000, &[]);
     // Per (direction, harmonic index) over every current: trial settings, and the settings
-    // the route computed to cancel (the first correction and the Newton step).
+    // the route computed to cancel (the first correction, and the Newton step if taken).
     let mut trials: Vec<((usize, usize), (usize, usize))> = Vec::new();
     let mut count = |at: &AtCurrent| {
         for (dir, k, r) in &at.routes {
-            let add = (r.trials, r.steps.len() - 1);
+            let add = (r.trials, 1 + usize::from(r.newton));
             match trials.iter_mut().find(|t| t.0 == (*dir, *k)) {
                 Some(t) => t.1 = (t.1.0 + add.0, t.1.1 + add.1),
                 None => trials.push(((*dir, *k), add)),
@@ -300,9 +302,9 @@ fn printer_score(seed: u64) -> Outcome {
     let AtCurrent { plans, routes, untouched, corrected, next_seed } = at;
     // The score's sensor: the printer's noise and rate without its ±2 g clipping and 10-bit
     // steps. The route measured through the real one; the score is the head's vibration,
-    // which a clipped capture does not show (printer 22 at 1.278 A clips at both speeds: its
-    // uncorrected harmonic 4 backward read 0.44 m/s² through the real sensor, 1.58 with the
-    // other harmonics corrected). `FAMILY_CLIPPED_SCORE=1` scores through the real sensor.
+    // which a clipped capture does not show (printer 22's baselines clip at both speeds at its
+    // last current: its harmonic 4 backward scores 25.4 dB through the real sensor, 32.3 dB
+    // without its clipping). `FAMILY_CLIPPED_SCORE=1` scores through the real sensor.
     let clipped = std::env::var_os("FAMILY_CLIPPED_SCORE").is_some();
     let [untouched, corrected] = [untouched, corrected].map(|mut p| {
         if !clipped {

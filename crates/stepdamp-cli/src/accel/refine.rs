@@ -4,9 +4,10 @@
 
 use crate::common::{load_motor, write_atomic};
 use crate::export::CurrentArgs;
-use anyhow::{Result, bail};
+use anyhow::{Result, anyhow, bail};
 use std::path::PathBuf;
 use stepdamp_accel::refine::{RefineOptions, TABLE_ITEMS, Timing, current_ratio};
+use stepdamp_export::RunCurrent;
 use stepdamp_export::prusa::Firmware;
 use stepdamp_export::prusa::refine::{Request, Session, prusa_refine};
 
@@ -70,16 +71,19 @@ pub struct RefineArgs {
 
 impl RefineArgs {
     /// The earlier session's run current, when --influence-from is given (then it is needed).
-    fn earlier_current(&self) -> Result<Option<stepdamp_export::RunCurrent>> {
-        let given = CurrentArgs { current: self.influence_current, current_rms: self.influence_current_rms };
-        match (self.influence_from.is_empty(), given.given()) {
-            (true, false) => Ok(None),
-            (true, true) => bail!("--influence-current(-rms) without --influence-from: whose current is it?"),
-            (false, false) => bail!(
+    fn earlier_current(&self) -> Result<Option<RunCurrent>> {
+        let named = |name: &str, v: f64, c: Result<RunCurrent, _>| {
+            c.map(Some).map_err(|_: stepdamp_export::ExportError| anyhow!("{name} {v:e} A: must be finite and > 0"))
+        };
+        match (self.influence_from.is_empty(), self.influence_current, self.influence_current_rms) {
+            (true, None, None) => Ok(None),
+            (true, _, _) => bail!("--influence-current(-rms) without --influence-from: whose current is it?"),
+            (false, Some(p), _) => named("--influence-current (peak)", p, RunCurrent::from_peak(p)),
+            (false, None, Some(r)) => named("--influence-current-rms", r, RunCurrent::from_rms(r)),
+            (false, None, None) => bail!(
                 "--influence-from needs the run current that session was recorded at: --influence-current A (peak) \
                  or --influence-current-rms A (RMS per phase)"
             ),
-            (false, true) => Ok(Some(given.run_current()?)),
         }
     }
 }

@@ -22,7 +22,8 @@ pub const MAX_BYTES: usize = 1 << 20;
 /// a longer input (or `/dev/zero`, or a FIFO that does not end) is refused after reading
 /// `MAX_BYTES + 1` bytes.
 pub fn read_capped(path: &Path) -> Result<Vec<u8>, ExportError> {
-    let what = path.display().to_string();
+    // Escaped: a path is the user's text, and the message goes to a terminal.
+    let what = crate::escape::line(&path.display().to_string());
     let bad = |reason: String| ExportError::Parse { what: what.clone(), reason };
     stepdamp_out::input::read_bounded(path, MAX_BYTES as u64).map_err(|e| match e.kind() {
         std::io::ErrorKind::InvalidData => bad(format!(

@@ -98,7 +98,8 @@ pub fn prusa_refine(r: &Request<'_>) -> Result<PrusaRefined, ExportError> {
         Some(then) => {
             let ratio = current_ratio(r.now.run.peak_a(), then.run.peak_a()).map_err(invalid)?;
             // The coefficients do not depend on the table that was in use then.
-            let earlier_steps = refine(then.captures, &r.options, &InUse::default()).map_err(invalid)?;
+            let earlier_steps = refine(then.captures, &r.options, &InUse::default())
+                .map_err(|e| ExportError::Invalid(format!("the earlier session: {e}")))?;
             let e = Earlier { steps: &earlier_steps, current_ratio: ratio };
             let steps = refine_with(r.now.captures, &r.options, &in_use, Some(&e)).map_err(invalid)?;
             (steps, Some((then.captures.len(), then.run, ratio)))
