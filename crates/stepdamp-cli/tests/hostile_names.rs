@@ -384,3 +384,27 @@ fn an_export_the_simulation_does_not_confirm_is_refused_unless_forced() {
     assert!(o.status.success(), "{}", text(&o));
     assert!(text(&o).contains("writing it anyway") && out.exists(), "{}", text(&o));
 }
+
+#[test]
+fn a_hostile_table_path_is_escaped_in_its_one_line_error() {
+    // A table path is the user's text: read errors (`prusa::read::read_capped`, which every
+    // table reader goes through) print it escaped, on one line.
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let out = out.to_str().unwrap();
+    for name in ["esc\u{1b}[2Jx.gcode", "line\nbreak.gcode"] {
+        let path = dir.path().join(name);
+        let p = path.to_str().unwrap();
+        let simulate = ["accel", "simulate", "--motor", "patent-motor", "--current", "0.9", "--gcode"];
+        let simulate = [&simulate[..], &["M973 X F2 R2 H4 A0 B0 C0 D0", "--in-use", p, "--out", out]].concat();
+        let sweep = ["-q", "sweep", "--mode", "open-loop", "--compensation", "table", "--table", p, "--out", out];
+        for args in [&simulate[..], &sweep[..]] {
+            let o = stepdamp(args);
+            let err = String::from_utf8_lossy(&o.stderr);
+            assert!(!o.status.success(), "{args:?}: {err}");
+            terminal_is_clean(&o);
+            assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
+            assert!(err.contains("cannot read"), "{args:?}: {err}");
+        }
+    }
+}
