@@ -11,6 +11,7 @@ use pyo3::types::{PyComplex, PyDict};
 use std::path::PathBuf;
 use stepdamp_accel::Axis;
 use stepdamp_accel::refine::{InfluenceSource, RefineOptions, Refined, Timing};
+use stepdamp_accel::ripple::MM_PER_REV_RANGE;
 use stepdamp_accel::sources;
 use stepdamp_export::prusa::Firmware;
 use stepdamp_export::prusa::refine::{Request, Session, prusa_refine as refine_table, table_in_use};
@@ -91,8 +92,11 @@ pub fn prusa_refine<'py>(
             Some((p.into_vec(), run_current_named(influence_current_peak_a, influence_current_rms_a, names)?))
         }
     };
-    if !(mm_per_rev.is_finite() && (1.0..=1000.0).contains(&mm_per_rev)) {
-        return Err(err(format!("mm_per_rev {mm_per_rev}: must be in 1..=1000 mm")));
+    let (lo, hi) = MM_PER_REV_RANGE;
+    if !(mm_per_rev.is_finite() && (lo..=hi).contains(&mm_per_rev)) {
+        return Err(err(format!(
+            "mm_per_rev {mm_per_rev}: must be in {lo}..={hi} mm (a pulley pitch radius of 1-50 mm)"
+        )));
     }
     let timing = match timing {
         "planned" => Timing::Planned,

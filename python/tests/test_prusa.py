@@ -72,6 +72,7 @@ def test_prusa_refine_refuses_what_the_cli_refuses_naming_pythons_arguments(cli,
         ({"influence_from": session, "influence_current_peak_a": 0.3}, "at most 2× either way"),
         ({"timing": "sometimes"}, 'timing "sometimes"'),
         ({"mm_per_rev": math.nan}, "mm_per_rev NaN"),
+        ({"mm_per_rev": 1000.0}, "mm_per_rev 1000: must be in 6.3..=314 mm"),
         ({"in_use": tmp_path / "missing.gcode"}, "missing.gcode"),
     ]:
         with pytest.raises(StepdampError, match=needle):

@@ -53,7 +53,8 @@ pub const SHIFT_DELAY_RANGE_S: (f64, f64) = (-5e-5, 5e-4);
 /// accepts: wider is refused as ill-determined.
 pub const MAX_RELATIVE_HALF_WIDTH: f64 = 0.3;
 
-/// The belt travel per motor revolution (mm) a front end accepts before it derives
+/// The belt travel per motor revolution (mm) a front end accepts (`identify --accel`, `accel refine`,
+/// and Python) before it derives
 /// [`RippleOptions::pulley_radius_m`] (= mm / 2π / 1000) from it: a pitch radius of 1–50 mm.
 pub const MM_PER_REV_RANGE: (f64, f64) = (6.3, 314.0);
 

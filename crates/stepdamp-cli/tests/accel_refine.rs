@@ -163,6 +163,7 @@ fn refine_refuses_what_it_cannot_use_naming_it() {
         (vec!["--in-use", "none", "--axis", "X"], "has no constant trial"),
         (vec!["--in-use", "none", "--axis", "Y"], "moved the other axis than --axis"),
         (vec!["--in-use", "none", "--axis", "Z"], "--axis Z: Prusa phase stepping has axes X and Y"),
+        (vec!["--in-use", "none", "--axis", "X", "--mm-per-rev", "1000"], "--mm-per-rev 1e3: must be in 6.3..=314 mm"),
         (vec!["--in-use", "/nonexistent/t.gcode", "--axis", "X"], "/nonexistent/t.gcode"),
     ] {
         let mut a: Vec<&str> = base.to_vec();

@@ -7,6 +7,7 @@ use crate::export::CurrentArgs;
 use anyhow::{Result, anyhow, bail};
 use std::path::PathBuf;
 use stepdamp_accel::refine::{RefineOptions, TABLE_ITEMS, Timing, current_ratio};
+use stepdamp_accel::ripple::MM_PER_REV_RANGE;
 use stepdamp_export::RunCurrent;
 use stepdamp_export::prusa::Firmware;
 use stepdamp_export::prusa::refine::{Request, Session, prusa_refine};
@@ -91,8 +92,9 @@ impl RefineArgs {
 /// Runs `stepdamp accel refine`.
 pub(super) fn run_refine(a: RefineArgs) -> Result<()> {
     let (axis, letter) = super::parse_axis(&a.axis)?;
-    if !(a.mm_per_rev.is_finite() && (1.0..=1000.0).contains(&a.mm_per_rev)) {
-        bail!("--mm-per-rev {:e}: must be in 1..=1000 mm", a.mm_per_rev);
+    let (lo, hi) = MM_PER_REV_RANGE;
+    if !(a.mm_per_rev.is_finite() && (lo..=hi).contains(&a.mm_per_rev)) {
+        bail!("--mm-per-rev {:e}: must be in {lo}..={hi} mm (a pulley pitch radius of 1-50 mm)", a.mm_per_rev);
     }
     let run = a.current.run_current()?;
     let earlier_run = a.earlier_current()?;
